@@ -1,0 +1,6 @@
+"""python -m envcap"""
+import sys
+
+from envcap.cli import main
+
+sys.exit(main())
