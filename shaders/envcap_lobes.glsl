@@ -1,0 +1,45 @@
+// envcap runtime, part 2: cosine lobes.  z(w) from the manifest's lobe table and the lobes of
+// Eq. 3 for a Lafortune BRDF.  No #version: #include this.  Derivations: docs/runtime.md.
+
+#ifndef ENVCAP_MAX_LEVELS
+#define ENVCAP_MAX_LEVELS 16
+#endif
+
+const float ENVCAP_PI = 3.14159265358979;
+// Upper bound of log2 of a Lafortune lobe weight |Cv|^w (2^64 ~ 1.8e19): keeps the weight
+// finite in float32 for absurd materials (|Cv| > 1 with large w).
+const float ENVCAP_MAX_LOG2_WEIGHT = 64.0;
+
+// Continuous mip level of cosine power w.  `xk[k]` = log2(1 + powers[k]) for the manifest's
+// strictly decreasing lobe powers (k = 0 .. n-1, filled by envcap.parallax.lobe_table), so
+// xk is strictly decreasing.  Piecewise linear in x = log2(1 + w); clamped to [0, n - 1]:
+// w >= powers[0] (also +inf) -> 0, w <= powers[n-1] -> n - 1.  w < 0 and NaN are treated as 0.
+float envcap_z_of_w(float w, float xk[ENVCAP_MAX_LEVELS], int n)
+{
+    n = clamp(n, 1, ENVCAP_MAX_LEVELS);
+    float x = log2(1.0 + (w > 0.0 ? w : 0.0));
+    if (!(x < xk[0])) return 0.0;
+    for (int k = 1; k < n; ++k) {
+        if (x >= xk[k]) return float(k - 1) + (xk[k - 1] - x) / (xk[k - 1] - xk[k]);
+    }
+    return float(n - 1);
+}
+
+// One specular lobe of a Lafortune BRDF, term rho_s * max(u . Cv, 0)^w with
+// Cv = (C.x v.x, C.y v.y, C.z v.z), for view direction v (unit, toward the viewer) in the local
+// shading frame (z = normal).  Returns vec4(c, weight): c = Cv / |Cv| (unit lobe axis, local
+// frame) and weight = |Cv|^w * 2 pi / (1 + w) * max(c.z, 0), so that the lobe's reflected
+// radiance is rho_s * weight * E_w(c), E_w = environment convolved with the normalized
+// cos^w lobe (the mip chain at level z(w)).  Fallbacks: |Cv| = 0 -> (0, 0, 1, 0) (no light);
+// log2 of |Cv|^w clamped to ENVCAP_MAX_LOG2_WEIGHT; w < 0 treated as 0.
+vec4 envcap_lafortune_lobe(vec3 v, vec3 C, float w)
+{
+    w = max(w, 0.0);
+    vec3 cv = C * v;
+    float len = length(cv);
+    if (!(len > 0.0)) return vec4(0.0, 0.0, 1.0, 0.0);
+    vec3 c = cv / len;
+    float e = min(w * log2(len), ENVCAP_MAX_LOG2_WEIGHT);
+    float mag = e < -126.0 ? 0.0 : exp2(e);
+    return vec4(c, mag * (2.0 * ENVCAP_PI / (1.0 + w)) * max(c.z, 0.0));
+}

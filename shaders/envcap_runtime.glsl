@@ -1,0 +1,98 @@
+// envcap runtime sampling library: three-plane parallax, mip shift, sky composite, Eq. 3.
+// Include this file (resources.shader_source resolves the include lines) after "#version 430".  All functions take plain
+// values; fill them from the probe set's manifest (envcap.parallax.RuntimeStreet.uniforms()).
+//
+// Textures: `probes` is a cube-map array (layer = probe) of premultiplied RGBA street radiance
+// (alpha 0 where the sky shows), level k convolved with the normalized cos^powers[k] lobe;
+// `sky` is a cube map with the same lobe ladder.  Sampling is trilinear and seamless.
+// Texture fetches per lobe: 1 probe + 1 sky (envcap_sample), 2 probes + 1 sky (blended).
+
+#include "envcap_street.glsl"
+#include "envcap_lobes.glsl"
+
+// Clamp a continuous mip level into the chain [0, n - 1]; NaN -> 0.
+float envcap_clamp_level(float z, int n)
+{
+    return (z > 0.0) ? min(z, float(max(n, 1) - 1)) : 0.0;
+}
+
+// Sky composite: street radiance is premultiplied, so the visible sky adds (1 - alpha) * sky.
+// Alpha is clamped to [0, 1] (filtering and half floats can step just outside).
+vec3 envcap_composite(vec4 street, vec3 sky)
+{
+    return street.rgb + (1.0 - clamp(street.a, 0.0, 1.0)) * sky;
+}
+
+// Radiance of the environment convolved with the cos^w lobe around unit direction d, as seen
+// from shading point x, from one probe: `layer` of `probes`, probe position p, three planes.
+// The street is sampled along the parallax vector at the shifted level z(w * ratio^2); the sky
+// along d itself at z(w) (the sky is at infinity: no parallax, no shift).
+vec3 envcap_sample_probe(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 d, float w,
+                         float layer, vec3 p, vec3 planes, int along,
+                         float xk[ENVCAP_MAX_LEVELS], int nlevels)
+{
+    vec4 par = envcap_parallax(x, d, p, planes, along);
+    float zs = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, par.w), xk, nlevels), nlevels);
+    float zk = envcap_clamp_level(envcap_z_of_w(w, xk, nlevels), nlevels);
+    vec4 st = textureLod(probes, vec4(par.xyz, layer), zs);
+    return envcap_composite(st, textureLod(sky, d, zk).rgb);
+}
+
+// As envcap_sample_probe, with the probe nearest to x along the street.  Probe k has layer
+// pos[k].w, along-street coordinate along[k] (= pos[k][along]), position pos[k].xyz and planes
+// planes[k].xyz.
+vec3 envcap_sample_nearest(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 d, float w,
+                           float along_s[ENVCAP_MAX_PROBES], vec4 pos[ENVCAP_MAX_PROBES],
+                           vec4 planes[ENVCAP_MAX_PROBES], int count, int along,
+                           float xk[ENVCAP_MAX_LEVELS], int nlevels)
+{
+    int i = envcap_nearest_probe(x[along], along_s, count);
+    return envcap_sample_probe(probes, sky, x, d, w, pos[i].w, pos[i].xyz, planes[i].xyz, along, xk, nlevels);
+}
+
+// Beyond the paper: blend the two probes that bracket x along the street, each with its own
+// parallax and mip shift, weights linear in the along-street coordinate (continuous: no
+// popping at the midpoint).  The sky term is shared.
+vec3 envcap_sample_blended(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 d, float w,
+                           float along_s[ENVCAP_MAX_PROBES], vec4 pos[ENVCAP_MAX_PROBES],
+                           vec4 planes[ENVCAP_MAX_PROBES], int count, int along,
+                           float xk[ENVCAP_MAX_LEVELS], int nlevels)
+{
+    vec3 pr = envcap_probe_pair(x[along], along_s, count);
+    int i0 = int(pr.x), i1 = int(pr.y);
+    vec4 a = envcap_parallax(x, d, pos[i0].xyz, planes[i0].xyz, along);
+    vec4 b = envcap_parallax(x, d, pos[i1].xyz, planes[i1].xyz, along);
+    float za = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, a.w), xk, nlevels), nlevels);
+    float zb = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, b.w), xk, nlevels), nlevels);
+    float zk = envcap_clamp_level(envcap_z_of_w(w, xk, nlevels), nlevels);
+    vec4 st = (1.0 - pr.z) * textureLod(probes, vec4(a.xyz, pos[i0].w), za)
+            + pr.z * textureLod(probes, vec4(b.xyz, pos[i1].w), zb);
+    return envcap_composite(st, textureLod(sky, d, zk).rgb);
+}
+
+// Eq. 3 for a Lafortune BRDF  f(u, v) = rho_d / pi + sum_i rho_s[i] max(u . Cv_i, 0)^w[i]:
+//   L_o(v) ~ rho_d E_1(n) + sum_i rho_s[i] |Cv_i|^w_i (2 pi / (1 + w_i)) max(c_i . n, 0) E_wi(c_i)
+// with E_w the cos^w-convolved environment seen from x (parallax + mip shift + sky, nearest
+// probe).  Frame: tangent T, bitangent B, normal N (world, orthonormal); v world, toward the
+// viewer.  Up to ENVCAP_MAX_LOBES specular lobes (C[i].xyz, w = C[i].w), rho_s[i].rgb.
+#ifndef ENVCAP_MAX_LOBES
+#define ENVCAP_MAX_LOBES 3
+#endif
+vec3 envcap_shade_lafortune(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 T, vec3 B, vec3 N,
+                            vec3 v, vec3 rho_d, vec4 C[ENVCAP_MAX_LOBES], vec3 rho_s[ENVCAP_MAX_LOBES],
+                            int nlobes, float along_s[ENVCAP_MAX_PROBES], vec4 pos[ENVCAP_MAX_PROBES],
+                            vec4 planes[ENVCAP_MAX_PROBES], int count, int along,
+                            float xk[ENVCAP_MAX_LEVELS], int nlevels)
+{
+    vec3 vl = vec3(dot(v, T), dot(v, B), dot(v, N));
+    vec3 L = rho_d * envcap_sample_nearest(probes, sky, x, N, 1.0, along_s, pos, planes, count, along, xk, nlevels);
+    for (int i = 0; i < nlobes && i < ENVCAP_MAX_LOBES; ++i) {
+        vec4 lobe = envcap_lafortune_lobe(vl, C[i].xyz, C[i].w);
+        if (lobe.w > 0.0) {
+            vec3 cw = lobe.x * T + lobe.y * B + lobe.z * N;
+            L += rho_s[i] * lobe.w * envcap_sample_nearest(probes, sky, x, cw, C[i].w, along_s, pos, planes,
+                                                           count, along, xk, nlevels);
+        }
+    }
+    return L;
+}
