@@ -1,0 +1,158 @@
+"""Import triangle meshes (glTF/GLB, OBJ, PLY, or a directory of PLY files) into the envcap frame.
+
+The transform from file coordinates ``p`` to envcap world coordinates (meters, +Y up) is,
+in this order (see ``docs/scenes.md``)::
+
+    1. scale:     p1 = scale * p
+    2. up axis:   "y": p2 = p1;   "z": p2 = (x1, z1, -y1)   (rotation of -90 deg about +X)
+    3. rotation:  p3 = R_y(rotation_deg) p2, right-handed about +Y
+                  (x3 = x2 cos a + z2 sin a,  z3 = -x2 sin a + z2 cos a; +90 deg turns +Z into +X)
+    4. offset:    p4 = p3 + offset
+
+Geometry is made flat-shaded: every triangle gets its own three vertices and its face normal
+(from the file's winding, counter-clockwise = front).  Degenerate (zero-area) triangles are
+dropped.  Vertex or face colors, if present, are read as sRGB and become linear albedo;
+otherwise the default ``albedo`` is used.  Imported meshes have no emission.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from envcap.scene._spec import Table
+from envcap.scene.geometry import srgb_to_linear
+from envcap.scene.model import SceneMesh
+
+MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off")
+
+
+def import_transform(
+    up_axis: str = "y",
+    rotation_deg: float = 0.0,
+    scale: float = 1.0,
+    offset: Sequence[float] = (0.0, 0.0, 0.0),
+) -> NDArray[np.float64]:
+    """The 4x4 matrix (float64, column vectors: ``world = M @ [p, 1]``) of the import transform."""
+    if up_axis not in ("y", "z"):
+        raise ValueError(f"up_axis must be 'y' or 'z', got {up_axis!r}")
+    vals = [rotation_deg, scale, *offset]
+    if len(offset) != 3 or not np.all(np.isfinite(vals)):
+        raise ValueError("rotation_deg, scale and offset (3 values) must be finite")
+    if not scale > 0:
+        raise ValueError(f"scale must be positive, got {scale}")
+    s = np.diag([scale, scale, scale, 1.0])
+    up = np.eye(4)
+    if up_axis == "z":
+        up[:3, :3] = [[1, 0, 0], [0, 0, 1], [0, -1, 0]]
+    a = np.deg2rad(rotation_deg)
+    ca, sa = np.cos(a), np.sin(a)
+    rot = np.eye(4)
+    rot[:3, :3] = [[ca, 0, sa], [0, 1, 0], [-sa, 0, ca]]
+    t = np.eye(4)
+    t[:3, 3] = offset
+    return t @ rot @ up @ s
+
+
+def _load_trimesh(path: Path) -> Any:
+    import trimesh
+
+    try:
+        m = trimesh.load(str(path), force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many kinds for bad files
+        raise ValueError(f"cannot read mesh file {path}: {exc}") from None
+    if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
+        raise ValueError(f"mesh file {path} has no triangles")
+    return m
+
+
+def _flat(m: Any, default_albedo: NDArray[np.float64], where: Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per-corner positions (T, 3, 3) and albedo (T, 3, 3) of a trimesh."""
+    v = np.asarray(m.vertices, np.float64)
+    f = np.asarray(m.faces, np.int64)
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"mesh file {where} has NaN or Inf vertex positions")
+    tri = v[f]
+    alb = np.broadcast_to(default_albedo, tri.shape).copy()
+    kind = getattr(m.visual, "kind", None)
+    if kind == "vertex":
+        vc = np.asarray(m.visual.vertex_colors)[:, :3] / 255.0
+        alb = srgb_to_linear(vc)[f]
+    elif kind == "face":
+        fc = np.asarray(m.visual.face_colors)[:, :3] / 255.0
+        alb = np.repeat(srgb_to_linear(fc)[:, None, :], 3, axis=1)
+    return tri, alb
+
+
+def mesh_files(path: Path) -> list[Path]:
+    """The mesh files a ``[mesh] file`` names: the file itself, or a directory's ``*.ply`` sorted."""
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.suffix.lower() == ".ply" and p.is_file())
+        if not files:
+            raise ValueError(f"mesh directory {path} contains no .ply files")
+        return files
+    if not path.is_file():
+        raise FileNotFoundError(f"mesh file {path} not found")
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise ValueError(f"mesh file {path}: unsupported type '{path.suffix}' (use one of {', '.join(MESH_SUFFIXES)})")
+    return [path]
+
+
+def import_mesh(
+    path: str | Path,
+    *,
+    up_axis: str = "y",
+    rotation_deg: float = 0.0,
+    offset: Sequence[float] = (0.0, 0.0, 0.0),
+    scale: float = 1.0,
+    albedo: ArrayLike = (0.5, 0.5, 0.5),
+) -> SceneMesh:
+    """Load a mesh file (or a directory of PLY files, concatenated) as a flat-shaded SceneMesh.
+
+    See the module docstring for the transform order.  ``albedo`` (linear RGB in [0, 1]) is used
+    where the file has no vertex or face colors.  Raises ``FileNotFoundError`` / ``ValueError``.
+    """
+    m4 = import_transform(up_axis, rotation_deg, scale, offset)
+    default_albedo = np.asarray(albedo, np.float64)
+    if default_albedo.shape != (3,) or not np.all((default_albedo >= 0) & (default_albedo <= 1)):
+        raise ValueError(f"albedo must be 3 values in [0, 1], got {albedo!r}")
+    tris, albs = [], []
+    for f in mesh_files(Path(path)):
+        t, a = _flat(_load_trimesh(f), default_albedo, f)
+        tris.append(t)
+        albs.append(a)
+    tri = np.concatenate(tris)
+    alb = np.concatenate(albs)
+    tri = tri @ m4[:3, :3].T + m4[:3, 3]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    length = np.linalg.norm(n, axis=1)
+    scale_ref = max(float(np.abs(tri).max()), 1.0)
+    keep = length > 1e-12 * scale_ref * scale_ref
+    if not np.any(keep):
+        raise ValueError(f"mesh {path} has only degenerate (zero-area) triangles")
+    tri, alb, n = tri[keep], alb[keep], n[keep] / length[keep, None]
+    t = tri.shape[0]
+    return SceneMesh(
+        positions=tri.reshape(-1, 3).astype(np.float32),
+        normals=np.repeat(n, 3, axis=0).astype(np.float32),
+        albedo=alb.reshape(-1, 3).astype(np.float32),
+        emission=np.zeros((3 * t, 3), np.float32),
+        indices=np.arange(3 * t, dtype=np.uint32).reshape(t, 3),
+    )
+
+
+def import_mesh_spec(t: Table, base_dir: Path | None) -> SceneMesh:
+    """Read a scene's ``[mesh]`` table (keys: file, up_axis, rotation_deg, offset, scale, albedo)."""
+    f = Path(t.string("file"))
+    if not f.is_absolute() and base_dir is not None:
+        f = base_dir / f
+    up = t.string("up_axis", "y", choices=("y", "z"))
+    rot = t.number("rotation_deg", 0.0)
+    off = t.vector("offset", 3, (0.0, 0.0, 0.0))
+    scale = t.number("scale", 1.0, positive=True)
+    albedo = t.vector("albedo", 3, (0.5, 0.5, 0.5), min=0.0, max=1.0, gray=True)
+    t.close()
+    return import_mesh(f, up_axis=up, rotation_deg=rot, offset=off, scale=scale, albedo=albedo)
