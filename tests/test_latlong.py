@@ -106,9 +106,9 @@ def test_latlong_to_cube_preserves_constant_and_mean_radiance():
 
 def test_cube_texel_average_matches_exact_integral_of_y():
     # Hand-derived: over the +Y face (plane y = 1, |x|, |z| <= 1), integral of cos(theta) d(omega)
-    # = integral dA / (1 + x^2 + z^2)^2 = 4 * 2 * (1 / (2 sqrt 2)) atan(1 / sqrt 2) = sqrt(2) atan(1/sqrt 2);
+    # = integral dA / (1 + x^2 + z^2)^2 = 4 * 2 * (1 / (2 sqrt 2)) atan(1 / sqrt 2) = 2 sqrt(2) atan(1/sqrt 2);
     # the face's solid angle is 4 pi / 6, so the mean of y over the face is their ratio (0.83119).
-    ref = math.sqrt(2) * math.atan(1 / math.sqrt(2)) / (4 * math.pi / 6)
+    ref = 2 * math.sqrt(2) * math.atan(1 / math.sqrt(2)) / (4 * math.pi / 6)
     got = cube_texel_average(lambda d: d[..., 1:2], 1, supersample=64)
     assert abs(got[2, 0, 0, 0] - ref) < 1e-5
     assert abs(got[3, 0, 0, 0] + ref) < 1e-5
