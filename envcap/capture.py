@@ -313,9 +313,13 @@ class CubeCapture:
             data = np.concatenate([mesh.positions, mesh.normals, mesh.albedo, mesh.emission], axis=1)
             self._vbo = ctx.buffer(np.ascontiguousarray(data, dtype=np.float32).tobytes())
             self._ibo = ctx.buffer(np.ascontiguousarray(mesh.indices, dtype=np.uint32).tobytes())
-            self._vao = ctx.vertex_array(
-                self._prog, [(self._vbo, "3f 3f 3f 3f", "in_position", "in_normal", "in_albedo", "in_emission")],
-                index_buffer=self._ibo, index_element_size=4)
+            # Attributes that a shader variant does not use are optimized away: skip their bytes.
+            names = [a for a in ("in_position", "in_normal", "in_albedo", "in_emission")
+                     if self._prog.get(a, None) is not None]
+            fmt = " ".join("3f" if self._prog.get(a, None) is not None else "12x"
+                           for a in ("in_position", "in_normal", "in_albedo", "in_emission"))
+            self._vao = ctx.vertex_array(self._prog, [(self._vbo, fmt, *names)],
+                                         index_buffer=self._ibo, index_element_size=4)
         n = self.size
         self._color = ctx.texture((3 * n, 2 * n), 4, dtype="f4")
         self._depth = ctx.depth_renderbuffer((3 * n, 2 * n))
