@@ -279,3 +279,79 @@ class RuntimeStreet:
         return {prefix + "along_s": self.along_coords.astype(np.float32), prefix + "pos": pos.astype(np.float32),
                 prefix + "planes": pl.astype(np.float32), prefix + "count": int(P), prefix + "along": int(self.along),
                 prefix + "xk": xk.astype(np.float32), prefix + "nlevels": int(xk.size)}
+
+
+# --- Texture-sampling twins (float64; texture lookups through envcap.cube_sampling) ----------
+
+def sample_probe(probe_levels: Sequence[NDArray], sky_levels: Sequence[NDArray], x: ArrayLike, d: ArrayLike,
+                 w: ArrayLike, layer: ArrayLike, p: ArrayLike, planes: ArrayLike, along: int,
+                 powers: Sequence[float]) -> NDArray[np.float64]:
+    """Twin of GLSL ``envcap_sample_probe``: cos^w-convolved radiance ``(..., 3)`` seen from ``x``
+    along unit ``d`` using one probe (``layer``, position ``p``, ``planes``).
+
+    ``probe_levels[k]``: ``(L, 6, N_k, N_k, 4)`` premultiplied RGBA; ``sky_levels[k]``:
+    ``(6, M_k, M_k, >=3)``; ``powers``: the lobe table (same ladder for probes and sky).
+    """
+    from envcap import cube_sampling
+
+    xk = lobe_table(powers)
+    n = xk.size
+    r, ratio = parallax(x, d, p, planes, along)
+    zs = clamp_level(z_of_w(shift_power(w, ratio), xk), n)
+    zk = clamp_level(z_of_w(np.broadcast_to(np.asarray(w, np.float64), r.shape[:-1]), xk), n)
+    d = np.broadcast_to(np.asarray(d, dtype=np.float64), r.shape)
+    st = cube_sampling.sample_cube_array(probe_levels, r, np.broadcast_to(layer, r.shape[:-1]), zs)
+    sk = cube_sampling.sample_cube(sky_levels, d, zk)
+    return composite(st, sk)
+
+
+def sample_street(probe_levels: Sequence[NDArray], sky_levels: Sequence[NDArray], street: RuntimeStreet,
+                  x: ArrayLike, d: ArrayLike, w: ArrayLike, powers: Sequence[float], blend: bool = False) -> NDArray[np.float64]:
+    """Twin of GLSL ``envcap_sample_nearest`` (``blend=False``) or ``envcap_sample_blended``.
+
+    ``x``, ``d``: ``(..., 3)`` shading points (m) and unit directions; ``w`` lobe power(s).
+    """
+    from envcap import cube_sampling
+
+    x = np.asarray(x, dtype=np.float64)
+    d = np.asarray(d, dtype=np.float64)
+    shape = np.broadcast_shapes(x.shape, d.shape)
+    x, d = np.broadcast_to(x, shape), np.broadcast_to(d, shape)
+    w = np.broadcast_to(np.asarray(w, dtype=np.float64), shape[:-1])
+    s = x[..., street.along]
+    if not blend:
+        i = nearest_probe(s, street.along_coords)
+        return sample_probe(probe_levels, sky_levels, x, d, w, street.layers[i], street.positions[i], street.planes[i],
+                            street.along, powers)
+    xk = lobe_table(powers)
+    n = xk.size
+    i0, i1, t = probe_pair(s, street.along_coords)
+    acc = np.zeros(shape[:-1] + (4,), dtype=np.float64)
+    for idx, wt in ((i0, 1.0 - t), (i1, t)):
+        r, ratio = parallax(x, d, street.positions[idx], street.planes[idx], street.along)
+        z = clamp_level(z_of_w(shift_power(w, ratio), xk), n)
+        acc += wt[..., None] * cube_sampling.sample_cube_array(probe_levels, r, street.layers[idx], z)
+    zk = clamp_level(z_of_w(w, xk), n)
+    return composite(acc, cube_sampling.sample_cube(sky_levels, d, zk))
+
+
+def shade_lafortune(env: Any, v_local: ArrayLike, frame: ArrayLike, rho_d: ArrayLike, C: ArrayLike, w: ArrayLike,
+                    rho_s: ArrayLike) -> NDArray[np.float64]:
+    """Eq. 3 for a Lafortune BRDF (twin of GLSL ``envcap_shade_lafortune``), float64.
+
+    ``env(dirs (..., 3) world, w (...)) -> (..., 3)`` returns the cos^w-convolved environment
+    (e.g. a closure over :func:`sample_street`).  ``v_local``: ``(..., 3)`` unit view directions
+    in the local frame; ``frame``: ``(..., 3, 3)`` rows T, B, N (world); ``rho_d``: ``(3,)``;
+    ``C``: ``(K, 3)``; ``w``: ``(K,)``; ``rho_s``: ``(K, 3)``.  Returns ``(..., 3)``::
+
+        L = rho_d E_1(N) + sum_i rho_s[i] |Cv_i|^w_i 2 pi / (1 + w_i) max(c_i . N, 0) E_wi(c_i)
+    """
+    v = np.asarray(v_local, dtype=np.float64)
+    F = np.asarray(frame, dtype=np.float64)
+    Nw = F[..., 2, :]
+    L = np.asarray(rho_d, np.float64) * env(Nw, np.ones(v.shape[:-1]))
+    for Ci, wi, rs in zip(np.asarray(C, np.float64), np.asarray(w, np.float64), np.asarray(rho_s, np.float64)):
+        c, wt = lafortune_lobe(v, Ci, wi)
+        cw = np.einsum("...i,...ij->...j", c, F)
+        L = L + rs * wt[..., None] * env(cw, np.full(v.shape[:-1], wi))
+    return L
