@@ -20,13 +20,6 @@ from envcap.scene._spec import Table
 from envcap.scene.geometry import MeshBuilder, subtract_interval
 from envcap.scene.model import EFFECTS, Scene, SceneMesh, Street
 
-SKY_KEYS: dict[str, tuple[str, ...]] = {
-    "preetham": ("type", "turbidity", "sun_elevation_deg", "sun_azimuth_deg"),
-    "latlong": ("type", "file", "scale"),
-    "uniform": ("type", "radiance"),
-}
-"""Keys accepted in ``[sky]`` per sky ``type`` (the table is passed through as ``Scene.sky``)."""
-
 MIN_PIECE = 0.5
 """Building pieces narrower than this (m, along the street) after clipping are dropped."""
 
@@ -172,26 +165,13 @@ def _parse_effects(v: Any) -> frozenset[str]:
 
 
 def _parse_sky(v: Any, base_dir: Path | None) -> dict[str, Any]:
-    t = Table(v, "sky")
-    kind = t.string("type", choices=tuple(SKY_KEYS))
-    unknown = sorted(set(t.data) - set(SKY_KEYS[kind]))
-    if unknown:
-        raise ValueError(f"sky: unknown key(s) {unknown} for type '{kind}'; allowed: {list(SKY_KEYS[kind])}")
-    for key, val in t.data.items():
-        if key in ("type", "file"):
-            continue
-        vals = val if isinstance(val, list) else [val]
-        for x in vals:
-            if isinstance(x, bool) or not isinstance(x, (int, float)) or not np.isfinite(x):
-                raise ValueError(f"sky.{key}: expected finite number(s), got {val!r}")
-    if kind == "latlong":
-        f = t.string("file")
-        p = Path(f) if base_dir is None or Path(f).is_absolute() else base_dir / f
-        if not p.is_file():
-            raise FileNotFoundError(f"sky.file: {p} not found")
-    if kind == "uniform" and not (isinstance(t.data.get("radiance"), list) and len(t.data["radiance"]) == 3):
-        raise ValueError("sky.radiance: expected [r, g, b]")
-    return dict(t.data)
+    """Check the ``[sky]`` table with :func:`envcap.sky.sky_from_spec` (the one interpreter of
+    it: unknown keys, types, missing files) and pass it through unchanged as a dict."""
+    from envcap.sky import sky_from_spec
+
+    Table(v, "sky")  # a table, not a string or a number
+    sky_from_spec(dict(v), base_dir)
+    return dict(v)
 
 
 @dataclass
