@@ -13,6 +13,17 @@ from pathlib import Path
 from typing import Iterator
 
 
+def _umask() -> int:
+    m = os.umask(0)
+    os.umask(m)
+    return m
+
+
+def _publish_mode(path: Path, is_dir: bool) -> None:
+    """Give a temporary file or directory (created owner-only by tempfile) the usual mode."""
+    os.chmod(path, (0o777 if is_dir else 0o666) & ~_umask())
+
+
 @contextlib.contextmanager
 def atomic_output_dir(path: str | os.PathLike[str], overwrite: bool = True) -> Iterator[Path]:
     """Yield a temporary directory that becomes ``path`` when the block ends without error.
@@ -33,6 +44,7 @@ def atomic_output_dir(path: str | os.PathLike[str], overwrite: bool = True) -> I
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    _publish_mode(tmp, True)
     old = None
     if final.exists():
         old = final.with_name(f".{final.name}.old-{os.getpid()}")
@@ -55,4 +67,5 @@ def atomic_output_file(path: str | os.PathLike[str]) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+    _publish_mode(tmp, False)
     os.replace(tmp, final)
