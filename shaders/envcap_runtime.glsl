@@ -5,7 +5,8 @@
 // Textures: `probes` is a cube-map array (layer = probe) of premultiplied RGBA street radiance
 // (alpha 0 where the sky shows), level k convolved with the normalized cos^powers[k] lobe;
 // `sky` is a cube map with the same lobe ladder.  Sampling is trilinear and seamless.
-// Texture fetches per lobe: 1 probe + 1 sky (envcap_sample), 2 probes + 1 sky (blended).
+// Texture fetches per lobe: 1 probe + 1 sky (envcap_sample_*), 2 probes + 1 sky (blended); the
+// sky fetch is skipped where the street's alpha is >= 1 (the result is the same: 1 - a = 0).
 
 #include "envcap_street.glsl"
 #include "envcap_lobes.glsl"
@@ -33,8 +34,9 @@ vec3 envcap_sample_probe(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 
 {
     vec4 par = envcap_parallax(x, d, p, planes, along);
     float zs = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, par.w), xk, nlevels), nlevels);
-    float zk = envcap_clamp_level(envcap_z_of_w(w, xk, nlevels), nlevels);
     vec4 st = textureLod(probes, vec4(par.xyz, layer), zs);
+    if (!(st.a < 1.0)) return st.rgb;            // street covers the lobe: no sky fetch needed
+    float zk = envcap_clamp_level(envcap_z_of_w(w, xk, nlevels), nlevels);
     return envcap_composite(st, textureLod(sky, d, zk).rgb);
 }
 
@@ -64,9 +66,10 @@ vec3 envcap_sample_blended(samplerCubeArray probes, samplerCube sky, vec3 x, vec
     vec4 b = envcap_parallax(x, d, pos[i1].xyz, planes[i1].xyz, along);
     float za = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, a.w), xk, nlevels), nlevels);
     float zb = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, b.w), xk, nlevels), nlevels);
-    float zk = envcap_clamp_level(envcap_z_of_w(w, xk, nlevels), nlevels);
     vec4 st = (1.0 - pr.z) * textureLod(probes, vec4(a.xyz, pos[i0].w), za)
             + pr.z * textureLod(probes, vec4(b.xyz, pos[i1].w), zb);
+    if (!(st.a < 1.0)) return st.rgb;            // street covers the lobe: no sky fetch needed
+    float zk = envcap_clamp_level(envcap_z_of_w(w, xk, nlevels), nlevels);
     return envcap_composite(st, textureLod(sky, d, zk).rgb);
 }
 

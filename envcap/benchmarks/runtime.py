@@ -1,0 +1,189 @@
+"""runtime: cost of the full probe lookup (parallax + mip shift + sky) vs a plain cube-array lookup.
+
+Three fragment passes over the same full-screen grid of shading points and directions, on the
+current GL driver (llvmpipe here), timed in the same run:
+
+* ``plain``: ``textureLod(probes, vec4(d, layer), z)`` (the simplest correct lookup, no parallax);
+* ``full``: ``envcap_sample_nearest`` (probe selection, three-plane parallax, mip shift in
+  w-space, z(w) from the lobe table, sky composite);
+* ``blended``: ``envcap_sample_blended`` (two probes, each parallax-corrected, + sky).
+
+Reports median times, ratios to ``plain``, and texture fetches per lobe (``textureLod`` calls
+on each path, counted in the shader source).  Writes ``runtime.json`` and ``runtime_cost.png``
+to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+
+VERT = """#version 430
+out vec2 uv;
+void main() {
+    vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
+    uv = p;
+    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}
+"""
+
+FRAG = """#version 430
+#define MODE {mode}
+in vec2 uv;
+out vec4 color;
+layout(binding = 3) uniform samplerCubeArray probes;
+layout(binding = 4) uniform samplerCube sky;
+#include "envcap_runtime.glsl"
+uniform float along_s[ENVCAP_MAX_PROBES];
+uniform vec4 pos[ENVCAP_MAX_PROBES];
+uniform vec4 planes[ENVCAP_MAX_PROBES];
+uniform int count;
+uniform int along;
+uniform float xk[ENVCAP_MAX_LEVELS];
+uniform int nlevels;
+uniform float w;
+void main() {
+    // a shading point on a grid along the street and a direction over the whole sphere
+    vec3 x = vec3(uv.x * 20.0, 0.5 + 6.0 * uv.y, 4.0 * sin(40.0 * uv.x));
+    float th = uv.y * 3.14159265, ph = uv.x * 6.2831853 * 3.0;
+    vec3 d = vec3(sin(th) * cos(ph), cos(th), sin(th) * sin(ph));
+#if MODE == 0
+    color = textureLod(probes, vec4(d, 0.0), envcap_z_of_w(w, xk, nlevels));
+#elif MODE == 1
+    color = vec4(envcap_sample_nearest(probes, sky, x, d, w, along_s, pos, planes, count, along, xk, nlevels), 1.0);
+#else
+    color = vec4(envcap_sample_blended(probes, sky, x, d, w, along_s, pos, planes, count, along, xk, nlevels), 1.0);
+#endif
+}
+"""
+
+MODES = {"plain": 0, "full": 1, "blended": 2}
+
+
+def fetches_per_lobe() -> dict[str, int]:
+    """``textureLod`` calls on each path, counted in the runtime GLSL source."""
+    from envcap.resources import shader_source
+
+    src = shader_source("envcap_runtime.glsl")
+
+    def body(name: str) -> str:
+        m = re.search(r"\b" + name + r"\s*\([^{]*\{", src)
+        if not m:
+            raise RuntimeError(f"function {name} not found in envcap_runtime.glsl")
+        i, depth = m.end(), 1
+        while depth:
+            depth += {"{": 1, "}": -1}.get(src[i], 0)
+            i += 1
+        return src[m.end():i]
+
+    probe = body("envcap_sample_probe").count("textureLod(")
+    return {"plain": 1, "full": probe, "blended": body("envcap_sample_blended").count("textureLod(")}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", required=True, help="output directory (JSON + PNG)")
+    parser.add_argument("--size", type=int, default=512, help="framebuffer width = height in pixels (default 512)")
+    parser.add_argument("--repeats", type=int, default=9, help="timed passes per mode (default 9)")
+    parser.add_argument("--face", type=int, default=64, help="probe face size in texels (default 64)")
+    parser.add_argument("--w", type=float, default=50.0, help="lobe power of the lookups (default 50)")
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.size < 1 or args.repeats < 1 or args.face < 1 or not np.isfinite(args.w) or args.w < 0:
+        raise ValueError("--size, --repeats and --face must be >= 1 and --w finite and >= 0")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from tqdm import tqdm
+
+    from envcap import synthetic_street as ss
+    from envcap.atomic import atomic_output_dir
+    from envcap.gl import CubeArrayTexture, create_context, cube_texture
+    from envcap.glsl_harness import set_uniforms
+    from envcap.lobes import lobe_ladder
+    from envcap.parallax import RuntimeStreet
+    from envcap.resources import shader_source
+
+    planes = (-6.0, 6.0, 0.0)
+    pos = ss.probe_positions(0.0, 20.0, 3, planes, 0)
+    pl = np.tile(planes, (3, 1))
+    lad = lobe_ladder(args.face)
+    probes = ss.box_mips(ss.probe_cubes(pos, pl, 0, args.face), lad.levels)
+    sky = ss.box_mips(ss.sky_cube(args.face), lad.levels)
+    street = RuntimeStreet(0, pos, pl, np.arange(3))
+
+    ctx = create_context()
+    pt = CubeArrayTexture(probes)
+    st = cube_texture(ctx, sky)
+    fbo = ctx.framebuffer([ctx.renderbuffer((args.size, args.size), 4, dtype="f4")])
+    progs = {}
+    for name, mode in MODES.items():
+        src = shader_source("envcap_runtime.glsl")
+        frag = FRAG.replace("{mode}", str(mode)).replace('#include "envcap_runtime.glsl"', src)
+        prog = ctx.program(vertex_shader=VERT, fragment_shader=frag)
+        set_uniforms(prog, {**street.uniforms(lad.powers), "w": float(args.w)})
+        progs[name] = (prog, ctx.vertex_array(prog, []))
+    fbo.use()
+    pt.use(3)
+    st.use(4)
+
+    def one(name: str) -> float:
+        vao = progs[name][1]
+        ctx.finish()
+        t0 = time.perf_counter()
+        vao.render(vertices=3)
+        ctx.finish()
+        return time.perf_counter() - t0
+
+    for name in MODES:          # warm-up (shader compile, first touch)
+        one(name)
+    times: dict[str, list[float]] = {k: [] for k in MODES}
+    for _ in tqdm(range(args.repeats), desc="runtime bench", disable=None):
+        for name in MODES:      # interleaved, so that load changes hit all modes alike
+            times[name].append(one(name))
+    med = {k: float(np.median(v)) for k, v in times.items()}
+    images = {}
+    for name in MODES:
+        progs[name][1].render(vertices=3)
+        images[name] = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(args.size, args.size, 4)
+    finite = {k: bool(np.all(np.isfinite(v))) for k, v in images.items()}
+    result = {
+        "device": ctx.info.get("GL_RENDERER", "?"),
+        "pixels": args.size * args.size,
+        "face": args.face,
+        "levels": lad.levels,
+        "w": args.w,
+        "repeats": args.repeats,
+        "median_s": med,
+        "ns_per_pixel": {k: v / (args.size * args.size) * 1e9 for k, v in med.items()},
+        "ratio_to_plain": {k: med[k] / med["plain"] for k in MODES},
+        "texture_fetches_per_lobe": fetches_per_lobe(),
+        "all_finite": finite,
+        "times_s": times,
+    }
+    with atomic_output_dir(args.out) as tmp:
+        (Path(tmp) / "runtime.json").write_text(json.dumps(result, indent=2))
+        fig, ax = plt.subplots(figsize=(5, 3))
+        names = list(MODES)
+        ax.bar(names, [result["ratio_to_plain"][k] for k in names], color=["#888", "#4a7", "#47a"])
+        ax.axhline(2.0, color="r", ls="--", lw=1, label="goal: 2x plain")
+        ax.set_ylabel("time / plain lookup")
+        ax.set_title(f"runtime lookup cost, {args.size}^2 px, {result['device'][:30]}", fontsize=8)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(Path(tmp) / "runtime_cost.png", dpi=120)
+        plt.close(fig)
+    for prog, vao in progs.values():
+        vao.release()
+        prog.release()
+    pt.release()
+    st.release()
+    fbo.release()
+    print(json.dumps({k: result[k] for k in ("ratio_to_plain", "ns_per_pixel", "texture_fetches_per_lobe", "all_finite")}))
+    return 0
