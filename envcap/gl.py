@@ -105,6 +105,13 @@ class RawGL:
                 raise RuntimeError(f"OpenGL entry point {name} not available through EGL")
             setattr(self, name, ctypes.CFUNCTYPE(res, *args)(ptr))
 
+    def clear_errors(self) -> None:
+        """Drop errors that earlier calls left queued (moderngl leaves some, e.g. when it makes a
+        framebuffer), so that :meth:`check` reports only what the calls after it caused."""
+        for _ in range(64):
+            if not self.glGetError():
+                return
+
     def check(self, what: str) -> None:
         err = self.glGetError()
         if err:
@@ -143,6 +150,7 @@ class CubeArrayTexture:
             raise ValueError(f"internal format must be 'rgba16f' or 'rgba32f', got {internal!r}")
         self.gl = RawGL()
         gl = self.gl
+        gl.clear_errors()
         tex = ctypes.c_uint(0)
         gl.glGenTextures(1, ctypes.byref(tex))
         self.glo = tex.value
@@ -182,6 +190,7 @@ class CubeArrayTexture:
         """Read mip ``level`` back as float32 ``(L, 6, N_k, N_k, 4)``."""
         nk = max(self.size >> level, 1)
         out = np.empty((self.layers, 6, nk, nk, 4), dtype=np.float32)
+        self.gl.clear_errors()
         self.gl.glBindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, self.glo)
         self.gl.glPixelStorei(GL_PACK_ALIGNMENT, 1)
         self.gl.glGetTexImage(GL_TEXTURE_CUBE_MAP_ARRAY, level, GL_RGBA, GL_FLOAT, out.ctypes.data)
@@ -214,6 +223,7 @@ def cube_texture(ctx: Any, levels: Sequence[NDArray[np.floating]], dtype: str = 
     if len(levels) > 1:
         tex.build_mipmaps(0, len(levels) - 1)
     gl = RawGL()
+    gl.clear_errors()
     gl.glBindTexture(GL_TEXTURE_CUBE_MAP, tex.glo)
     gl.glPixelStorei(GL_UNPACK_ALIGNMENT, 1)
     for k, lv in enumerate(levels):
