@@ -61,3 +61,67 @@ def test_help_lists_the_commands(capsys):
     text = capsys.readouterr().out
     for cmd in ("capture", "scenes", "bench"):
         assert cmd in text
+
+
+SCENE_TEMPLATE = """
+name = "t"
+description = "test"
+effects = {effects}
+
+[sky]
+{sky}
+
+[[streets]]
+name = "s"
+axis = "x"
+start = -10.0
+end = 10.0
+width = 12.0
+cross = 0.0
+"""
+
+
+def _write_nan_latlong(path):
+    import OpenEXR
+
+    img = np.ones((8, 16, 3), np.float32)
+    img[3, 5, 1] = np.nan
+    OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, {"RGB": img}).write(str(path))
+
+
+@pytest.mark.parametrize(
+    "effects, sky, words",
+    [
+        ('["sun_light", "fog"]', 'type = "uniform"\nradiance = [1.0, 1.0, 1.0]', "fog"),
+        ('["sky_light"]', 'type = "latlong"\nfile = "missing.exr"', "missing.exr"),
+        ('["sky_light"]', 'type = "latlong"\nfile = "nan.exr"', "NaN"),
+        ('["sky_light"]', 'type = "preetham"\nturbidity = 30.0\nsun_elevation_deg = 30.0', "turbidity"),
+    ],
+)
+def test_bad_scene_files_give_one_clear_line(tmp_path, effects, sky, words):
+    _write_nan_latlong(tmp_path / "nan.exr")
+    scene = tmp_path / "t.toml"
+    scene.write_text(SCENE_TEMPLATE.format(effects=effects, sky=sky))
+    r = run_cli("capture", str(scene), "--out", str(tmp_path / "out"), "--resolution", "8")
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 2 and len(lines) == 1 and words in lines[0], r.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_missing_scene_file_is_one_line(tmp_path):
+    r = run_cli("capture", str(tmp_path / "nope.toml"), "--out", str(tmp_path / "out"))
+    assert r.returncode == 2 and "nope.toml" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_a_scene_without_sun_effects_runs_no_sun_or_shadow_pass(gl_ctx):
+    from envcap.bake import bake_probe_set
+    from envcap.scene import load_scene
+
+    scene = load_scene("avenue")  # effects: emissive_windows, sky_light
+    assert "sun_light" not in scene.effects
+    ps = bake_probe_set(scene, resolution=8, spacing=400.0, ctx=gl_ctx, filter_levels=False, progress=False)
+    assert "shadow_map" not in ps.manifest["passes_run"]
+    assert ps.manifest["effects"] == ["emissive_windows", "sky_light"]
+    canyon = bake_probe_set(load_scene("canyon"), resolution=8, spacing=500.0, ctx=gl_ctx, filter_levels=False,
+                            progress=False)
+    assert "shadow_map" in canyon.manifest["passes_run"]
