@@ -14,9 +14,23 @@ float sun_visibility(vec3 world, vec3 n, float cos_l) {
     if (any(lessThan(p.xy, vec2(0.0))) || any(greaterThan(p.xy, vec2(1.0))) || p.z > 1.0) return 1.0;
     float tan_l = sqrt(max(1.0 - cos_l * cos_l, 0.0)) / max(cos_l, 1e-3);
     float ref = p.z - shadow_bias_const - shadow_bias_slope * min(tan_l, 10.0);
-    float v = 0.0;
-    for (int j = -1; j <= 1; ++j)
-        for (int i = -1; i <= 1; ++i)
-            v += texture(shadow_map, vec3(p.xy + vec2(i, j) * shadow_texel, ref));
+    // 3x3 PCF of bilinear 2x2 comparisons at offsets of one texel, evaluated as its 4x4 texel
+    // footprint: per axis the texels b-1, b, b+1, b+2 (b = floor(x), x = p * res - 0.5, f = fract(x))
+    // carry weights 1-f, 1, 1, f (sum 3), so 4 gathers of compare results replace 9 filtered taps
+    // (docs/capture.md).
+    vec2 x = p.xy / shadow_texel - 0.5;
+    vec2 b = floor(x);
+    vec2 f = x - b;
+    vec4 g00 = textureGather(shadow_map, (b + vec2(0.0, 0.0)) * shadow_texel, ref);  // texels b-1, b
+    vec4 g10 = textureGather(shadow_map, (b + vec2(2.0, 0.0)) * shadow_texel, ref);  // x: b+1, b+2
+    vec4 g01 = textureGather(shadow_map, (b + vec2(0.0, 2.0)) * shadow_texel, ref);  // y: b+1, b+2
+    vec4 g11 = textureGather(shadow_map, (b + vec2(2.0, 2.0)) * shadow_texel, ref);
+    // gather order: (x0, y1), (x1, y1), (x1, y0), (x0, y0); weights per column / row:
+    vec4 wx = vec4(1.0 - f.x, 1.0, 1.0, f.x);
+    vec4 wy = vec4(1.0 - f.y, 1.0, 1.0, f.y);
+    float v = wy.x * (wx.x * g00.w + wx.y * g00.z + wx.z * g10.w + wx.w * g10.z)
+            + wy.y * (wx.x * g00.x + wx.y * g00.y + wx.z * g10.x + wx.w * g10.y)
+            + wy.z * (wx.x * g01.w + wx.y * g01.z + wx.z * g11.w + wx.w * g11.z)
+            + wy.w * (wx.x * g01.x + wx.y * g01.y + wx.z * g11.x + wx.w * g11.y);
     return v / 9.0;
 }
