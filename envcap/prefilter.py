@@ -31,15 +31,23 @@ __all__ = [
     "omega_box_pyramid",
     "footprint_rects",
     "prefilter_chain",
+    "prefilter_many",
     "QUALITY",
 ]
 
-# quality -> (min lobe RMS angle in source texels, footprint truncation: weights < eps * peak dropped)
-QUALITY: dict[str, tuple[float, float]] = {
-    "fast": (4.0, 1e-4),
-    "default": (math.inf, 1e-6),
-    "high": (math.inf, 1e-10),
+# quality -> (q: source texels per lobe RMS angle, eps: footprint truncation (weights < eps * peak /
+# dynamic range dropped), smallest source face size used).  Measured accuracy: docs/prefilter.md.
+QUALITY: dict[str, tuple[float, float, int]] = {
+    "fast": (2.0, 1e-3, 16),
+    "default": (4.0, 1e-4, 32),
+    "high": (8.0, 1e-9, 64),
 }
+HOT_FACTOR = 1e3
+"""Level-0 texels brighter than this x the median positive luminance are summed exactly (the sun)."""
+MAX_HOT = 256
+"""At most this many hot texels per cube (the brightest); the rest stay in the source levels."""
+_LOOP_BUDGET = 48000  # llvmpipe ends a shader's loops after 65535 iterations in all
+_LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 # Face frames of envcap.cube: direction = N + u A + v B.
 _FN = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], np.float64)
@@ -195,72 +203,153 @@ def footprint_rects(dirs: ArrayLike, theta: float, n_src: int) -> NDArray[np.int
     return rects
 
 
-def _source_level(sigma: float, sizes: tuple[int, ...], avail: int, min_sigma_texels: float) -> int:
-    """Coarsest available level whose face-center texel angle (2/N) is <= sigma / min_sigma_texels."""
+def _luminance(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Non-negative luminance weight of each texel of ``(..., C)``: Rec.709 Y of the first three
+    channels when ``C >= 3``, else the sum of the positive channels."""
+    if a.shape[-1] >= 3:
+        y = a[..., :3] @ _LUMA
+    else:
+        y = np.maximum(a, 0.0).sum(axis=-1)
+    return np.maximum(y, 0.0)
+
+
+class _Pyramid:
+    """Source levels of one batch of cubes ``(P, 6, N, N, C)`` for the GL filter (float64, CPU).
+
+    ``hot``: the level-0 texels brighter than ``HOT_FACTOR`` x the median positive luminance of
+    their cube (at most ``MAX_HOT`` per cube, the brightest), kept as exact point samples and
+    removed from the levels.  Level ``j``: ``s[j]`` ``(P, 6, n, n, C)`` sums of ``Omega * L``,
+    ``om[j]`` ``(6, n, n)`` solid angles, ``dirs[j]`` ``(P, 6, n, n, 3)`` unit luminance-weighted
+    centroid directions (texel centers at level 0).  ``dyn``: max / median luminance of what is
+    left (footprint truncation is relative to it).
+    """
+
+    def __init__(self, a: NDArray[np.float64], levels: int) -> None:
+        p, _, n, _, c = a.shape
+        om0 = cubemod.texel_solid_angles(n)
+        y = _luminance(a)
+        self.hot_idx: list[NDArray[np.int64]] = []
+        dyn = 1.0
+        keep = np.ones(y.shape, bool)
+        for i in range(p):
+            yi = y[i].reshape(-1)
+            pos = yi[yi > 0]
+            med = float(np.median(pos)) if pos.size else 0.0
+            cand = np.flatnonzero(yi > HOT_FACTOR * med) if pos.size else np.zeros(0, np.int64)
+            if cand.size > MAX_HOT:
+                cand = cand[np.argsort(yi[cand])[-MAX_HOT:]]
+            self.hot_idx.append(cand)
+            keep[i].reshape(-1)[cand] = False
+            rest = yi[keep[i].reshape(-1)]
+            if pos.size and rest.size and rest.max() > 0:
+                dyn = max(dyn, float(rest.max() / med))
+        self.dyn = dyn
+        d0 = cubemod.texel_directions(n)
+        self.hot_dirs = [d0.reshape(-1, 3)[h] for h in self.hot_idx]
+        self.hot_s = [(a[i] * om0[..., None]).reshape(-1, c)[h] for i, h in enumerate(self.hot_idx)]
+        s = a * om0[None, ..., None] * keep[..., None]
+        wgt = om0[None] * (np.where(keep, y, 0.0) + 1e-9 * max(float(y.max()), 1e-30))
+        mom = wgt[..., None] * d0[None]
+        self.s, self.om, self.dirs = [s], [om0], [np.broadcast_to(d0, (p,) + d0.shape)]
+        om = om0
+        for _ in range(1, levels):
+            if n % 2 or n < 2:
+                break
+            n //= 2
+            s = s.reshape(p, 6, n, 2, n, 2, c).sum(axis=(3, 5))
+            om = om.reshape(6, n, 2, n, 2).sum(axis=(2, 4))
+            wgt = wgt.reshape(p, 6, n, 2, n, 2).sum(axis=(3, 5))
+            mom = mom.reshape(p, 6, n, 2, n, 2, 3).sum(axis=(3, 5))
+            self.s.append(s)
+            self.om.append(om)
+            self.dirs.append(mom / np.linalg.norm(mom, axis=-1, keepdims=True))
+
+    @property
+    def sizes(self) -> list[int]:
+        return [x.shape[2] for x in self.s]
+
+
+def _footprint_theta(w: float, eps: float) -> float:
+    """Half-angle (radians) of the cap where ``cos^w >= eps`` (pi/2 for ``w = 0``)."""
+    return math.pi / 2 if w == 0 else math.acos(min(1.0, eps ** (1.0 / w)))
+
+
+def _source_level(w: float, theta: float, sizes: list[int], q: float, min_src: int) -> int:
+    """The coarsest source level with texels at most ``1/q`` of the lobe's RMS angle
+    (face-center texel ``2/N``), no coarser than ``min_src`` texels per face (or level 0), and
+    whose footprint stays under :data:`_LOOP_BUDGET` loop iterations (llvmpipe's loop limit)."""
+    sigma = 1.0 / math.sqrt(w + 2.0)
     best = 0
-    for j in range(avail):
-        if sigma >= min_sigma_texels * 2.0 / sizes[j]:
-            best = j
+    for j, nj in enumerate(sizes):
+        if j and (nj < min_src or sigma < q * 2.0 / nj):
+            break
+        best = j
+    while best + 1 < len(sizes) and _loop_estimate(theta, sizes[best]) > _LOOP_BUDGET:
+        best += 1
     return best
 
 
-class _GLFilter:
-    MAX_LOOP = 32768  # llvmpipe ends loops after 65535 iterations: stay well below per dispatch
+def _loop_estimate(theta: float, n: int) -> float:
+    """Upper estimate of the loop iterations of one invocation: the rows visited plus the texels
+    in the cap (texels are up to 3^1.5 ~ 5.2x denser per steradian at face corners)."""
+    cap = 2.0 * math.pi * (1.0 - math.cos(min(theta, math.pi)))
+    texels = min(cap * 5.2 * (n / 2.0) ** 2, 6.0 * n * n)
+    return texels + 6.0 * n
 
+
+class _GLFilter:
     def __init__(self, ctx: Any) -> None:
         from envcap.resources import shader_source
 
         self.ctx = ctx
         self.prog = ctx.compute_shader(shader_source("prefilter_lobe.glsl"))
 
-    def run(self, src_omega_l: NDArray[np.float32], omega: NDArray[np.float32], dirs: NDArray[np.float32],
-            rects: NDArray[np.int32], w: float, log_floor: float, offset: float) -> NDArray[np.float32]:
+    def run(self, s4: NDArray[np.float64], dirs: NDArray[np.float64], om: NDArray[np.float64],
+            hot_s: list[NDArray[np.float64]], hot_d: list[NDArray[np.float64]], n_out: int, w: float,
+            eps: float, theta: float, n0: int) -> NDArray[np.float32]:
+        """Filter one 4-channel block: ``s4`` ``(P, 6, n, n, 4)`` Omega * L, ``dirs`` ``(P, 6, n, n, 3)``,
+        ``om`` ``(6, n, n)``; hot lists per probe.  Returns ``(P, 6, n_out, n_out, 4)`` float32."""
         ctx = self.ctx
-        m = dirs.shape[0]
-        n_src = src_omega_l.shape[1]
-        bufs = [
-            ctx.buffer(np.ascontiguousarray(src_omega_l, np.float32).tobytes()),
-            ctx.buffer(np.ascontiguousarray(omega, np.float32).tobytes()),
-            ctx.buffer(np.ascontiguousarray(np.concatenate([dirs, np.zeros((m, 1), np.float32)], 1)).tobytes()),
-            ctx.buffer(np.ascontiguousarray(rects, np.int32).tobytes()),
-            ctx.buffer(reserve=m * 48),
-        ]
-        acc = np.zeros((m, 4), np.float64)
-        wsum = np.zeros(m, np.float64)
-        best = np.full(m, -np.inf)
-        best_val = np.zeros((m, 4), np.float64)
-        # rows of the 6 faces, stacked: face f row j is f * n_src + j
-        rows_lo = (rects[:, :, 2] + np.arange(6) * n_src)[rects[:, :, 0] < rects[:, :, 1]]
-        rows_hi = (rects[:, :, 3] + np.arange(6) * n_src)[rects[:, :, 0] < rects[:, :, 1]]
-        band = max(1, self.MAX_LOOP // (n_src + 1))
+        p, n = s4.shape[0], s4.shape[2]
+        d4 = np.empty((p, 6, n, n, 4), np.float32)
+        d4[..., :3] = dirs
+        d4[..., 3] = om
+        hs = np.concatenate([h for h in hot_s] + [np.zeros((1, 4))]).astype(np.float32)
+        hd = np.concatenate([np.pad(h, ((0, 0), (0, 1))) for h in hot_d] + [np.zeros((1, 4))]).astype(np.float32)
+        counts = np.array([h.shape[0] for h in hot_s], np.int32)
+        hr = np.stack([np.concatenate([[0], np.cumsum(counts)[:-1]]), counts], 1).astype(np.int32)
+        count = p * 6 * n_out * n_out
+        bufs = [ctx.buffer(np.ascontiguousarray(s4, np.float32).tobytes()), ctx.buffer(d4.tobytes()),
+                ctx.buffer(hs.tobytes()), ctx.buffer(hd.tobytes()), ctx.buffer(hr.tobytes()),
+                ctx.buffer(reserve=count * 16)]
         try:
             for b, buf in enumerate(bufs):
                 buf.bind_to_storage_buffer(b)
-            self.prog["count"].value = m
-            self.prog["n_src"].value = n_src
-            self.prog["w"].value = float(w)
-            self.prog["log_floor"].value = float(log_floor)
-            self.prog["offset"].value = float(offset)
-            for r0 in range(0, 6 * n_src, band):
-                r1 = min(r0 + band, 6 * n_src)
-                if not np.any((rows_lo < r1) & (rows_hi > r0)):
-                    continue
-                self.prog["row_begin"].value = r0
-                self.prog["row_end"].value = r1
-                self.prog.run(group_x=(m + 63) // 64)
-                part = np.frombuffer(bufs[4].read(), dtype=np.float32).reshape(m, 3, 4)
-                acc += part[:, 0]
-                wsum += part[:, 1, 0]
-                better = part[:, 1, 1] > best
-                best = np.where(better, part[:, 1, 1], best)
-                best_val[better] = part[better, 2]
+            full = theta >= 1.2
+            pr = self.prog
+            pr["count"].value = count
+            pr["n_out"].value = n_out
+            pr["n_src"].value = n
+            pr["w"].value = float(w)
+            pr["log_floor"].value = float(max(math.log(eps), -80.0)) if not full else -1e30
+            pr["blur_var"].value = float((1.0 - (n / n0) ** 2) * (2.0 / n) ** 2 / 12.0)
+            pr["theta"].value = float(theta)
+            pr["cos_theta"].value = float(math.cos(theta))
+            pr["full"].value = full
+            groups = (count + 63) // 64
+            gx = min(groups, 1024)
+            pr.run(group_x=gx, group_y=(groups + gx - 1) // gx)
+            out = np.frombuffer(bufs[5].read(), dtype=np.float32).reshape(p, 6, n_out, n_out, 4).copy()
         finally:
             for buf in bufs:
                 buf.release()
-        ok = wsum > 0
-        out = best_val.copy()
-        out[ok] = acc[ok] / wsum[ok, None]
-        return out.astype(np.float32)
+        bad = ~np.isfinite(out).all(axis=-1)
+        if bad.any():  # every weight underflowed (lobe << one source texel): the nearest texel, w -> inf
+            pi, f, r, c = np.nonzero(bad)
+            d = cubemod.face_uv_to_direction(f, (c + 0.5) * 2.0 / n_out - 1.0, (r + 0.5) * 2.0 / n_out - 1.0)
+            ff, rr, cc = cubemod.direction_to_texel(d, n)
+            out[pi, f, r, c] = (s4[pi, ff, rr, cc] / om[ff, rr, cc, None]).astype(np.float32)
+        return out
 
     def release(self) -> None:
         self.prog.release()
@@ -269,36 +358,36 @@ class _GLFilter:
 Quality = Literal["fast", "default", "high"]
 
 
-def prefilter_chain(cube: ArrayLike, ladder: LobeLadder | None = None, quality: Quality = "default",
-                    ctx: Any = None, progress: bool | None = None) -> list[NDArray[np.float32]]:
-    """Filter ``cube`` ``(6, N, N, C)`` into a cosine-lobe mip chain ``[(6, N_k, N_k, C)]`` (float32).
+def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: Quality = "default",
+                   ctx: Any = None, progress: bool | None = None,
+                   batch_bytes: int = 64 << 20) -> list[NDArray[np.float32]]:
+    """Filter ``P`` cubes ``(P, 6, N, N, C)`` into cosine-lobe chains: a list of ``(P, 6, N_k, N_k, C)``.
 
-    Level 0 is the input (unfiltered, as float32).  Level ``k >= 1`` is the normalized
-    ``cos^w_k`` average (``ladder`` defaults to :func:`envcap.lobes.lobe_ladder`), computed with a
-    GLSL compute pass from the coarsest solid-angle box reduction of the input whose texels are at
-    most ``1/q`` of the lobe's RMS angle, over the footprint where ``cos^w >= eps * peak``
-    (``quality``: ``(q, eps)`` in :data:`QUALITY`).  ``ctx``: a moderngl context (one is created
-    and released when ``None``).  ``progress``: tqdm bar (``None``: only on a TTY).
+    Same result as :func:`prefilter_chain` on each cube (one GL dispatch per level and channel
+    block for a batch of probes whose source buffers fit ``batch_bytes``), the form a probe-set
+    bake wants: level ``k`` of all probes is one array, ready for a cube-map array.
     """
     from tqdm import tqdm
 
-    a = check_finite_cube(cube)
-    n, nch = a.shape[1], a.shape[3]
+    a = np.asarray(cubes)
+    if a.ndim != 5:
+        raise ValueError(f"cubes must have shape (P, 6, N, N, C), got {a.shape}")
+    if a.shape[0] < 1:
+        raise ValueError("cubes must hold at least one cube (P >= 1)")
+    if a.shape[1] != 6 or a.shape[2] != a.shape[3] or a.shape[2] < 1 or a.shape[4] < 1:
+        raise ValueError(f"cubes must have shape (P, 6, N, N, C), got {a.shape}")
+    a = np.stack([check_finite_cube(c, f"cube {i}") for i, c in enumerate(a)]) if a.shape[0] > 1 \
+        else check_finite_cube(a[0])[None]
+    p_all, _, n, _, nch = a.shape
     if ladder is None:
         ladder = lobe_ladder(n)
     if ladder.sizes[0] != n:
         raise ValueError(f"ladder is for {ladder.sizes[0]}-texel faces, cube has {n}")
     if quality not in QUALITY:
         raise ValueError(f"quality must be one of {sorted(QUALITY)}, got {quality!r}")
-    min_sigma_texels, eps = QUALITY[quality]
-    pyramid = omega_box_pyramid(a, ladder.levels)
-    # Truncate the footprint relative to the dynamic range, not only to the lobe peak: a 1e9 sun
-    # next to a 1e3 sky must not vanish at the edge of its footprint.
-    mag = np.abs(a).max(axis=-1)
-    pos = mag[mag > 0]
-    dyn = float(pos.max() / np.median(pos)) if pos.size else 1.0
-    eps = eps / max(dyn, 1.0)
-    chain: list[NDArray[np.float32]] = [a.astype(np.float32)]
+    q, eps0, min_src = QUALITY[quality]
+    chain = [np.empty((p_all, 6, s, s, nch), np.float32) for s in ladder.sizes]
+    chain[0][:] = a
     if ladder.levels == 1:
         return chain
     own = ctx is None
@@ -307,30 +396,48 @@ def prefilter_chain(cube: ArrayLike, ladder: LobeLadder | None = None, quality: 
 
         ctx = create_context()
     filt = _GLFilter(ctx)
+    per = max(1, int(batch_bytes // (6 * n * n * 16)))
     try:
-        for k in tqdm(range(1, ladder.levels), desc="prefilter", unit="level", disable=None if progress is None else not progress):
-            w = float(ladder.powers[k])
-            nk = ladder.sizes[k]
-            sigma = 1.0 / math.sqrt(w + 2.0)
-            j = _source_level(sigma, ladder.sizes, len(pyramid), min_sigma_texels)
-            src = pyramid[j]
-            ns = src.shape[1]
-            om = cubemod.texel_solid_angles(ns)
-            dirs = cubemod.texel_directions(nk).reshape(-1, 3)
-            theta = math.pi if w == 0 else math.acos(min(1.0, eps ** (1.0 / w)))
-            rects = footprint_rects(dirs, theta, ns)
-            offset = min(w / (ns * ns), 60.0)
-            out = np.empty((dirs.shape[0], nch), np.float32)
-            for c0 in range(0, nch, 4):
-                cc = min(4, nch - c0)
-                s4 = np.zeros((6, ns, ns, 4), np.float64)
-                s4[..., :cc] = src[..., c0:c0 + cc] * om[..., None]
-                res = filt.run(s4.astype(np.float32), om[0].astype(np.float32), dirs.astype(np.float32), rects, w,
-                               math.log(eps), offset)
-                out[:, c0:c0 + cc] = res[:, :cc]
-            chain.append(out.reshape(6, nk, nk, nch))
+        bar = tqdm(total=p_all * (ladder.levels - 1), desc="prefilter", unit="level",
+                   disable=None if progress is None else not progress)
+        for b0 in range(0, p_all, per):
+            batch = a[b0:b0 + per]
+            pyr = _Pyramid(batch, ladder.levels)
+            eps = eps0 / max(pyr.dyn, 1.0)
+            for k in range(1, ladder.levels):
+                w = float(ladder.powers[k])
+                theta = _footprint_theta(w, eps)
+                j = _source_level(w, theta, pyr.sizes, q, min_src)
+                for c0 in range(0, nch, 4):
+                    cc = min(4, nch - c0)
+                    s4 = np.zeros(pyr.s[j].shape[:-1] + (4,), np.float64)
+                    s4[..., :cc] = pyr.s[j][..., c0:c0 + cc]
+                    hs = [np.pad(h[:, c0:c0 + cc], ((0, 0), (0, 4 - cc))) for h in pyr.hot_s]
+                    res = filt.run(s4, pyr.dirs[j], pyr.om[j], hs, pyr.hot_dirs, ladder.sizes[k], w, eps, theta, n)
+                    chain[k][b0:b0 + per, ..., c0:c0 + cc] = res[..., :cc]
+                bar.update(batch.shape[0])
+        bar.close()
     finally:
         filt.release()
         if own:
             ctx.release()
     return chain
+
+
+def prefilter_chain(cube: ArrayLike, ladder: LobeLadder | None = None, quality: Quality = "default",
+                    ctx: Any = None, progress: bool | None = None) -> list[NDArray[np.float32]]:
+    """Filter ``cube`` ``(6, N, N, C)`` into a cosine-lobe mip chain ``[(6, N_k, N_k, C)]`` (float32).
+
+    Level 0 is the input (unfiltered, as float32).  Level ``k >= 1`` is the normalized
+    ``cos^w_k`` average (``ladder`` defaults to :func:`envcap.lobes.lobe_ladder`), computed by a
+    GLSL compute pass (one dispatch per level) from the coarsest solid-angle box reduction of the
+    input whose texels are at most ``1/q`` of the lobe's RMS angle, each coarse texel placed at
+    its luminance-weighted centroid direction, over the footprint where
+    ``cos^w >= eps / D * peak`` (``D``: dynamic range left after the hot texels; ``quality``:
+    ``(q, eps, min source size)`` in :data:`QUALITY`).  The few texels brighter than
+    :data:`HOT_FACTOR` x the median (a sun) are summed exactly at full resolution.
+    ``ctx``: a moderngl context (one is created and released when ``None``).  ``progress``:
+    tqdm bar (``None``: only on a TTY).  Accuracy and speed: ``docs/prefilter.md``.
+    """
+    a = check_finite_cube(cube)
+    return [lv[0] for lv in prefilter_many(a[None], ladder, quality, ctx, progress)]
