@@ -401,6 +401,9 @@ class CubeCapture:
         if not (math.isfinite(near) and 0 < near < far):
             raise ValueError(f"need 0 < near < far, got near={near}, far={far}")
         shadow_resolution = _check_size(shadow_resolution)
+        if isinstance(chunk_size, bool) or not isinstance(chunk_size, (int, float, np.integer, np.floating)) \
+                or not (math.isfinite(chunk_size) and chunk_size > 0):
+            raise ValueError(f"chunk cell size must be a finite number of meters > 0, got {chunk_size!r}")
         self.mesh = mesh
         self.cull_chunks = bool(cull_chunks)
         self.near, self.far = float(near), float(far)

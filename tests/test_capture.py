@@ -296,3 +296,103 @@ def test_face_clip_matrix_maps_texel_centers_to_pixel_centers():
         np.testing.assert_allclose(clip[..., 0] / clip[..., 3], u, atol=1e-12)
         np.testing.assert_allclose(clip[..., 1] / clip[..., 3], v, atol=1e-12)
         assert np.all(np.abs(clip[..., 2] / clip[..., 3]) < 1)
+
+
+# -- per-face chunk culling ---------------------------------------------------------------------
+
+def _canyon():
+    from envcap.scene import load_scene
+    from envcap.sky import sky_from_spec
+
+    sc = load_scene("canyon")
+    return sc, sky_from_spec(sc.sky, sc.base_dir)
+
+
+def test_culled_capture_equals_drawing_everything_on_canyon(gl_ctx):
+    """Culling and nearest-first order change nothing: bit-exact against the one-draw path."""
+    sc, sky = _canyon()
+    positions = [
+        [10.3, 1.7, 0.4],      # mid street
+        [8.0, 1.7, 0.0],       # on a chunk-cell boundary (8 m cells) in x and z
+        [16.0, 1.7, 7.99],     # a cell corner, 1 cm from the facade plane
+        [299.5, 1.7, 0.0],     # street end
+        [305.0, 1.7, 0.0],     # beyond the end, looking back into the canyon
+        [0.0, 60.0, 0.0],      # above the roofs
+        [0.0, 10.0, -15.0],    # inside a building
+    ]
+    with CubeCapture.from_scene(sc, 32, sky=sky, ctx=gl_ctx) as fast, \
+            CubeCapture.from_scene(sc, 32, sky=sky, ctx=gl_ctx, cull_chunks=False) as full:
+        assert fast.chunks is not None and fast.chunks.first.size > 20
+        for p in positions:
+            a, b = fast.capture(p), full.capture(p)
+            np.testing.assert_array_equal(a.rgba, b.rgba, err_msg=f"rgba at {p}")
+            np.testing.assert_array_equal(a.distance, b.distance, err_msg=f"distance at {p}")
+            np.testing.assert_array_equal(a.backfacing, b.backfacing, err_msg=f"backfacing at {p}")
+            assert b.draw_stats["triangles"] == 6 * sc.mesh.triangle_count
+            assert a.draw_stats["triangles"] < 0.5 * b.draw_stats["triangles"], p  # it does cull
+            assert a.rgba[..., 3].any()
+        s = fast.capture_many(np.array(positions[:3]), progress=False)
+        np.testing.assert_array_equal(s.rgba[1], full.capture(positions[1]).rgba)
+
+
+def test_chunk_visibility_never_rejects_a_box_the_frustum_reaches():
+    """Reference: exact feasibility (scipy linprog) of {r in box, inside the face frustum}."""
+    from scipy.optimize import linprog
+
+    from envcap.capture import _FACE_ROWS, chunk_face_visibility
+
+    rng = np.random.default_rng(7)
+    c0 = rng.uniform(-20, 20, (200, 3))
+    size = rng.uniform(0.0, 6.0, (200, 3)) * (rng.random((200, 3)) > 0.1)  # some flat boxes
+    lo, hi = c0, c0 + size
+    lo[:10] = [[0.0, 0.0, 0.0]] * 10  # boxes touching the probe
+    probe = np.zeros(3)
+    near = 0.05
+    vis = chunk_face_visibility(lo, hi, probe, near=near)
+    assert vis.shape == (6, 200) and vis.dtype == bool
+    rejected = 0
+    for f in range(6):
+        r = _FACE_ROWS[f]
+        a_ub = np.stack([r[0] - r[2], -r[0] - r[2], r[1] - r[2], -r[1] - r[2], -r[2]])  # a r <= b
+        b_ub = np.array([0, 0, 0, 0, -near])
+        for c in range(200):
+            res = linprog(np.zeros(3), A_ub=a_ub, b_ub=b_ub, bounds=list(zip(lo[c], hi[c])), method="highs")
+            if res.status == 0:
+                assert vis[f, c], (f, lo[c], hi[c])
+            rejected += not vis[f, c]
+    assert rejected > 6 * 200 * 0.5  # most boxes miss most faces
+
+
+def test_chunk_visibility_far_plane_and_box_around_probe():
+    from envcap.capture import chunk_face_visibility
+
+    lo = np.array([[-1.0, -1, -1], [50.0, -1, -1]])
+    hi = np.array([[1.0, 1, 1], [60.0, 1, 1]])
+    vis = chunk_face_visibility(lo, hi, np.zeros(3), near=0.05, far=40.0)
+    assert vis[:, 0].all()                     # a box around the probe reaches every face
+    assert not vis[:, 1].any()                 # beyond far on +X, outside the other faces
+    assert chunk_face_visibility(lo, hi, np.zeros(3))[0, 1]  # infinite far: +X sees it
+
+
+def test_chunk_triangles_partition_and_bounds(gl_ctx):
+    from envcap.capture import chunk_triangles
+
+    sc, _ = _canyon()
+    m = sc.mesh
+    ch = chunk_triangles(m.positions, m.indices, 8.0)
+    assert np.array_equal(np.sort(ch.order), np.arange(m.triangle_count))  # each triangle once
+    assert ch.first[0] == 0 and np.array_equal(ch.first[1:], np.cumsum(ch.count)[:-1])
+    tri = m.positions[m.indices[ch.order]].astype(np.float64)
+    chunk_of = np.repeat(np.arange(ch.first.size), ch.count)
+    assert np.all(tri.min(axis=1) >= ch.lo[chunk_of]) and np.all(tri.max(axis=1) <= ch.hi[chunk_of])
+    # Loose grid: a box is at most about twice its cell, so the huge ground does not bloat the rest.
+    ext = (ch.hi - ch.lo)[:, [0, 2]].max(axis=1)
+    assert ch.count[ext <= 2 * 8.0 + 1e-3].sum() > 0.95 * m.triangle_count  # windows, frames: 8 m cells
+    assert ch.count[ext > 2 * 32.0 + 1e-3].sum() < 10  # only the ground is in a huge box
+    empty = chunk_triangles(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32))
+    assert empty.first.size == 0
+    for bad in (0.0, -1.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="chunk cell size"):
+            chunk_triangles(m.positions, m.indices, bad)
+        with pytest.raises(ValueError, match="chunk cell size"):
+            CubeCapture(box((0, 0, 0), (1, 1, 1)), 2, chunk_size=bad, ctx=gl_ctx)
