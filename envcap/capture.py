@@ -561,15 +561,17 @@ class CubeCapture:
                         self._vao.render(vertices=3 * count, first=3 * first)
             ctx.finish()
         t1 = time.perf_counter()
-        raw = np.frombuffer(self._fbo.read(viewport=(0, 0, 3 * n, 2 * n), components=4, dtype="f4"), dtype=np.float32)
-        grid = raw.reshape(2, n, 3, n, 4).transpose(0, 2, 1, 3, 4).reshape(6, n, n, 4)
-        t2 = time.perf_counter()
-        signed = grid[..., 3]
-        hit = signed != 0.0
+        # Read each face's n x n block straight into its slot of (6, N, N, 4): no transpose copy.
         rgba = np.empty((6, n, n, 4), dtype=np.float32)
-        rgba[..., :3] = np.where(hit[..., None], grid[..., :3], 0.0)
-        rgba[..., 3] = hit
-        distance = np.abs(signed).astype(np.float32)
+        for f in range(6):
+            self._fbo.read_into(rgba[f], viewport=((f % 3) * n, (f // 3) * n, n, n), components=4, dtype="f4")
+        t2 = time.perf_counter()
+        signed = rgba[..., 3].copy()
+        miss = signed == 0.0
+        # RGB is already 0 where alpha is: the clear value, since every fragment writes |alpha| =
+        # its distance >= near > 0 (it lies in the frustum, ma >= near), so a miss was never drawn.
+        np.logical_not(miss, out=rgba[..., 3], casting="unsafe")
+        distance = np.abs(signed)
         times = {"render": t1 - t0, "readback": t2 - t1}
         return ProbeCapture(position=p, rgba=rgba, distance=distance, backfacing=signed < 0.0,
                             passes_run=self.passes_run + ["render", "readback"],
