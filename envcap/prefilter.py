@@ -32,6 +32,7 @@ __all__ = [
     "footprint_rects",
     "prefilter_chain",
     "prefilter_many",
+    "prefilter_level",
     "QUALITY",
 ]
 
@@ -422,6 +423,47 @@ def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: 
         if own:
             ctx.release()
     return chain
+
+
+def prefilter_level(cube: ArrayLike, w: float, out_size: int, quality: Quality = "default",
+                    ctx: Any = None) -> NDArray[np.float32]:
+    """One normalized ``cos^w`` level of ``cube`` ``(6, N, N, C)`` on a ``(6, M, M, C)`` grid
+    (``M = out_size``, any ``w >= 0``), by the same GL filter as :func:`prefilter_chain`.
+
+    For chains built on other ladders (e.g. the cmft comparison in ``envcap bench zw``).
+    """
+    a = check_finite_cube(cube)
+    w = _check_w(w)
+    m = int(out_size)
+    if m < 1:
+        raise ValueError(f"out_size must be >= 1, got {out_size}")
+    if quality not in QUALITY:
+        raise ValueError(f"quality must be one of {sorted(QUALITY)}, got {quality!r}")
+    q, eps0, min_src = QUALITY[quality]
+    own = ctx is None
+    if own:
+        from envcap.gl import create_context
+
+        ctx = create_context()
+    filt = _GLFilter(ctx)
+    try:
+        n, nch = a.shape[1], a.shape[3]
+        pyr = _Pyramid(a[None], n.bit_length())
+        eps = eps0 / max(pyr.dyn, 1.0)
+        theta = _footprint_theta(w, eps)
+        j = _source_level(w, theta, pyr.sizes, q, min_src)
+        out = np.empty((6, m, m, nch), np.float32)
+        for c0 in range(0, nch, 4):
+            cc = min(4, nch - c0)
+            s4 = np.zeros(pyr.s[j].shape[:-1] + (4,), np.float64)
+            s4[..., :cc] = pyr.s[j][..., c0:c0 + cc]
+            hs = [np.pad(h[:, c0:c0 + cc], ((0, 0), (0, 4 - cc))) for h in pyr.hot_s]
+            out[..., c0:c0 + cc] = filt.run(s4, pyr.dirs[j], pyr.om[j], hs, pyr.hot_dirs, m, w, eps, theta, n)[0, ..., :cc]
+    finally:
+        filt.release()
+        if own:
+            ctx.release()
+    return out
 
 
 def prefilter_chain(cube: ArrayLike, ladder: LobeLadder | None = None, quality: Quality = "default",

@@ -23,22 +23,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--size", type=int, default=256, help="face size of the inputs (default 256)")
     p.add_argument("--samples", type=int, default=96,
                    help="output texels per level evaluated with the exact method (time extrapolated to the full chain)")
+    p.add_argument("--full-size", type=int, default=64,
+                   help="face size at which the exact method runs on every output texel (measured, not extrapolated)")
 
 
-def inputs(n: int) -> dict[str, np.ndarray]:
-    """Synthetic street probe (premultiplied RGBA, sharp edges, alpha-0 sky) composited over a sky, and a sky with a sun."""
-    d = cm.texel_directions(n)
-    az = np.arctan2(d[..., 0], d[..., 2])
-    geo = (d[..., 1] < 0.35 + 0.2 * (np.sin(7 * az) > 0)).astype(np.float64)
-    rgb = np.stack([0.3 + 0.2 * (d[..., 0] > 0.2), 0.25 + 0.1 * (d[..., 2] > 0), 0.2 + 0 * d[..., 0]], -1) * 500
-    street = np.concatenate([rgb * geo[..., None], geo[..., None]], -1)
-    sky = np.stack([4e3 + 3e3 * np.clip(d[..., 1], 0, 1), 5e3 + 3e3 * np.clip(d[..., 1], 0, 1), 8e3 + 4e3 * np.clip(d[..., 1], 0, 1),
-                    np.ones_like(az)], -1) * (d[..., 1:2] > -0.05)
-    sun_dir = np.array([0.6, 0.55, 0.58]) / np.linalg.norm([0.6, 0.55, 0.58])
-    sun = (d @ sun_dir > math.cos(2.0 / n)) * np.float32(1e9)
-    sky_sun = sky.copy()
-    sky_sun[..., :3] += sun[..., None]
-    return {"street": street + (1 - street[..., 3:4]) * sky, "sky_sun": sky_sun.astype(np.float32).astype(np.float64)}
+def inputs(n: int, ctx=None) -> dict[str, np.ndarray]:
+    """Real inputs: the captured canyon probe over its sky, and the Preetham sky with its sun."""
+    from envcap.prefilter_inputs import real_inputs
+
+    return real_inputs(n, ctx)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -51,58 +44,69 @@ def run(args: argparse.Namespace) -> int:
     n = int(args.size)
     if n < 2:
         raise ValueError(f"--size must be >= 2, got {n}")
-    lad = lobe_ladder(n)
     ctx = create_context()
     rng = np.random.default_rng(0)
-    result: dict = {"size": n, "ladder": lad.to_manifest(), "inputs": {}}
-    total_out = sum(6 * s * s for s in lad.sizes[1:])
-    for name, env in inputs(n).items():
-        rec: dict = {}
-        picks, exact, t_exact = [], [], 0.0
-        for k in range(1, lad.levels):
-            nk = lad.sizes[k]
-            idx = rng.choice(6 * nk * nk, min(args.samples, 6 * nk * nk), replace=False)
-            dirs = cm.texel_directions(nk).reshape(-1, 3)[idx]
-            t = time.perf_counter()
-            exact.append(convolve_exact_dirs(env, lad.powers[k], dirs))
-            t_exact += (time.perf_counter() - t) * (6 * nk * nk) / idx.size
-            picks.append(idx)
-        rec["exact"] = {"seconds_extrapolated": t_exact, "note": f"{args.samples} texels per level timed, scaled to all {total_out}"}
-
-        def err(chain):
-            out = []
+    result: dict = {"runs": []}
+    for size, samples in ((n, int(args.samples)), (int(args.full_size), None)):
+        lad = lobe_ladder(size)
+        run_rec: dict = {"size": size, "exact": "sampled" if samples else "full", "ladder": lad.to_manifest(), "inputs": {}}
+        total_out = sum(6 * s * s for s in lad.sizes[1:])
+        for name, env in inputs(size, ctx).items():
+            rec: dict = {}
+            picks, exact, t_exact = [], [], 0.0
             for k in range(1, lad.levels):
-                om = cm.texel_solid_angles(lad.sizes[k]).reshape(-1)[picks[k - 1]]
-                yf = chain[k].reshape(-1, chain[k].shape[-1])[picks[k - 1], :3] @ LUMA
-                ye = exact[k - 1][:, :3] @ LUMA
-                out.append(float(math.sqrt((om * (yf - ye) ** 2).sum() / (om * ye**2).sum())))
-            return out
+                nk = lad.sizes[k]
+                m = 6 * nk * nk if samples is None else min(samples, 6 * nk * nk)
+                idx = np.arange(m) if samples is None else rng.choice(6 * nk * nk, m, replace=False)
+                dirs = cm.texel_directions(nk).reshape(-1, 3)[idx]
+                t = time.perf_counter()
+                exact.append(convolve_exact_dirs(env, lad.powers[k], dirs))
+                t_exact += (time.perf_counter() - t) * (6 * nk * nk) / idx.size
+                picks.append(idx)
+            rec["exact"] = {"seconds" if samples is None else "seconds_extrapolated": t_exact,
+                            "note": "every output texel" if samples is None else
+                            f"{samples} texels per level timed, scaled to all {total_out}"}
 
-        for q in ("fast", "default", "high"):
+            def err(chain):
+                out = []
+                for k in range(1, lad.levels):
+                    om = cm.texel_solid_angles(lad.sizes[k]).reshape(-1)[picks[k - 1]]
+                    yf = chain[k].reshape(-1, chain[k].shape[-1])[picks[k - 1], :3] @ LUMA
+                    ye = exact[k - 1][:, :3] @ LUMA
+                    out.append(float(math.sqrt((om * (yf - ye) ** 2).sum() / (om * ye**2).sum())))
+                return out
+
+            for q in ("fast", "default", "high"):
+                prefilter_chain(env, lad, quality=q, ctx=ctx, progress=False)  # warm-up (shader compile)
+                t = time.perf_counter()
+                chain = prefilter_chain(env, lad, quality=q, ctx=ctx, progress=False)
+                dt = time.perf_counter() - t
+                rec[q] = {"seconds": dt, "speedup_vs_exact": t_exact / dt, "rel_rmse_per_level": err(chain)}
             t = time.perf_counter()
-            chain = prefilter_chain(env, lad, quality=q, ctx=ctx, progress=False)
+            box = omega_box_pyramid(env, lad.levels)
             dt = time.perf_counter() - t
-            rec[q] = {"seconds": dt, "speedup_vs_exact": t_exact / dt, "rel_rmse_per_level": err(chain)}
-        t = time.perf_counter()
-        box = omega_box_pyramid(env, lad.levels)
-        dt = time.perf_counter() - t
-        rec["box_mips"] = {"seconds": dt, "speedup_vs_exact": t_exact / dt, "rel_rmse_per_level": err(box)}
-        result["inputs"][name] = rec
-        print(name, {m: (round(v.get("seconds", v.get("seconds_extrapolated")), 3),
-                         max(v.get("rel_rmse_per_level", [0]))) for m, v in rec.items()}, flush=True)
+            rec["box_mips"] = {"seconds": dt, "speedup_vs_exact": t_exact / dt, "rel_rmse_per_level": err(box)}
+            run_rec["inputs"][name] = rec
+            print(size, name, {m: (round(v.get("seconds", v.get("seconds_extrapolated", 0)), 3),
+                                   f"{max(v.get('rel_rmse_per_level', [0])):.2g}") for m, v in rec.items()}, flush=True)
+        result["runs"].append(run_rec)
     ctx.release()
     with atomic_output_dir(args.out) as tmp:
         (tmp / "prefilter.json").write_text(json.dumps(result, indent=2))
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        for ax, (name, rec) in zip(axes, result["inputs"].items()):
-            for m in ("fast", "default", "high", "box_mips"):
-                ax.semilogy(range(1, lad.levels), np.maximum(rec[m]["rel_rmse_per_level"], 1e-9), "o-",
-                            label=f"{m} ({rec[m]['speedup_vs_exact']:.0f}x faster than exact)")
-            ax.axhline(5e-3, color="k", ls=":", label="0.5% target")
-            ax.set_title(f"{name}, 6x{n}^2, exact: {rec['exact']['seconds_extrapolated']:.0f} s (extrapolated)")
-            ax.set_xlabel("level k")
-            ax.set_ylabel("relative RMSE of luminance vs exact")
-            ax.legend(fontsize=7)
+        fig, axes = plt.subplots(2, 2, figsize=(11, 8))
+        for row, run_rec in zip(axes, result["runs"]):
+            lv = range(1, len(run_rec["ladder"]["sizes"]))
+            for ax, (name, rec) in zip(row, run_rec["inputs"].items()):
+                for m in ("fast", "default", "high", "box_mips"):
+                    ax.semilogy(lv, np.maximum(rec[m]["rel_rmse_per_level"], 1e-9), "o-",
+                                label=f"{m}: {rec[m]['seconds']:.3g} s, {rec[m]['speedup_vs_exact']:.0f}x faster than exact")
+                ax.axhline(5e-3, color="k", ls=":", label="0.5% target")
+                ex = rec["exact"]
+                how = f"{ex['seconds']:.0f} s" if "seconds" in ex else f"{ex['seconds_extrapolated']:.0f} s extrapolated"
+                ax.set_title(f"{name}, 6x{run_rec['size']}^2, exact: {how}", fontsize=9)
+                ax.set_xlabel("level k")
+                ax.set_ylabel("relative RMSE of luminance vs exact")
+                ax.legend(fontsize=7)
         fig.tight_layout()
         fig.savefig(tmp / "prefilter_cost.png", dpi=110)
     return 0
