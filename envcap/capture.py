@@ -536,9 +536,9 @@ class CubeCapture:
         p = _check_position(position)
         n = self.size
         ctx = self.ctx
-        t0 = time.perf_counter()
         stats = {"cull_s": 0.0, "triangles": 0.0, "draw_calls": 0.0}
-        draws = self._face_draws(p, stats)
+        draws = self._face_draws(p, stats)  # CPU time in stats["cull_s"], not in "render"
+        t0 = time.perf_counter()
         self._fbo.use()
         self._fbo.viewport = (0, 0, 3 * n, 2 * n)
         self._fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)

@@ -1,16 +1,26 @@
-"""Probe capture throughput (probes/s at 6 x N^2) per effect subset, against a naive re-upload path.
+"""Probe capture throughput (probes/s at 6 x N^2): per-face chunk culling against drawing everything.
 
 The scene is the bundled ``canyon`` street when ``envcap.scene.load_scene`` exists, else a
-synthetic street of ~50k triangles (``envcap.capture_synthetic.street_canyon``).  The baseline is
-the simplest correct method: a fresh :class:`~envcap.capture.CubeCapture` per probe (mesh
-re-upload, shader compile, shadow map and sky SH recomputed for every probe).  Its output is
-checked equal to the fast path's.
+synthetic street of ~50k triangles (``envcap.capture_synthetic.street_canyon``).  Measured in
+the same run, interleaved round by round so that load from other processes hits both alike:
+
+* ``culled``: :class:`~envcap.capture.CubeCapture` as shipped (chunks culled per face, nearest
+  first), for every effect subset;
+* ``unculled``: the simplest correct method, ``cull_chunks=False`` (every triangle drawn for
+  every face, one draw call per face), all effects; its output must be bit-identical;
+* ``naive``: a fresh capture per probe (mesh upload, shader compile, shadow map, sky SH), all
+  effects, for the cost of the per-set setup.
+
+Reports probes/s, ratios, per-probe pass costs (``cull``: CPU choosing chunks, ``render``: the
+six faces drawn and finished, ``readback``: read into (6, N, N, 4)), triangles and draw calls per
+probe, and the load average seen.  Writes ``capture.json`` and ``capture.png`` to ``--out``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from pathlib import Path
 
@@ -41,7 +51,8 @@ class _Sky:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, help="output directory (JSON + PNG)")
     parser.add_argument("--size", type=int, default=256, help="face resolution N")
-    parser.add_argument("--probes", type=int, default=20, help="probes per timed run")
+    parser.add_argument("--probes", type=int, default=20, help="probes per timed round")
+    parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (culled / unculled)")
     parser.add_argument("--baseline-probes", type=int, default=3, help="probes for the naive baseline")
 
 
@@ -57,12 +68,22 @@ def _scene():
         return street_canyon(), "synthetic street_canyon", None
 
 
+def _timed(cap, pos: np.ndarray) -> tuple[float, dict[str, float], object]:
+    """Wall seconds for ``capture_many(pos)``, per-probe pass means, and the set."""
+    t0 = time.perf_counter()
+    s = cap.capture_many(pos, progress=False)
+    dt = time.perf_counter() - t0
+    per = {k: s.pass_times_s[k] / len(pos) for k in ("render", "readback")}
+    return dt, per, s
+
+
 def run(args: argparse.Namespace) -> int:
     from envcap.capture import CubeCapture
     from envcap.gl import create_context
 
-    if args.size < 1 or args.probes < 1 or args.baseline_probes < 1:
-        raise ValueError("--size, --probes and --baseline-probes must be >= 1")
+    if args.size < 1 or args.probes < 1 or args.baseline_probes < 1 or args.rounds < 1:
+        raise ValueError("--size, --probes, --rounds and --baseline-probes must be >= 1")
+    load_before = os.getloadavg()
     mesh, name, sc = _scene()
     sky = _Sky()
     if sc is not None:
@@ -72,54 +93,123 @@ def run(args: argparse.Namespace) -> int:
     ctx = create_context()
     lo, hi = mesh.positions.min(0), mesh.positions.max(0)
     rng = np.random.default_rng(0)
-    pos = np.stack([rng.uniform(lo[0] + 0.3 * (hi[0] - lo[0]), lo[0] + 0.7 * (hi[0] - lo[0]), args.probes),
-                    np.full(args.probes, 1.7), np.zeros(args.probes)], axis=1)
+    x_lo, x_hi = -290.0, 290.0  # along the canyon street (x), inside its ends
+    if name != "canyon":
+        x_lo, x_hi = lo[0] + 0.3 * (hi[0] - lo[0]), lo[0] + 0.7 * (hi[0] - lo[0])
+    pos = np.stack([rng.uniform(x_lo, x_hi, args.probes), np.full(args.probes, 1.7),
+                    rng.uniform(-3.0, 3.0, args.probes)], axis=1)
+    all_eff = {"sun_light", "sun_shadows", "sky_light", "emissive_windows"}
     subsets = {"geometry only": set(), "emissive_windows": {"emissive_windows"}, "sky_light": {"sky_light"},
-               "sun_light": {"sun_light"}, "sun_light+sun_shadows": {"sun_light", "sun_shadows"},
-               "all": {"sun_light", "sun_shadows", "sky_light", "emissive_windows"}}
+               "sun_light": {"sun_light"}, "sun_light+sun_shadows": {"sun_light", "sun_shadows"}, "all": all_eff}
+
+    # Culled vs unculled, all effects, interleaved rounds; outputs compared probe by probe.
+    fast = CubeCapture(mesh, args.size, sky=sky, effects=all_eff, ctx=ctx)
+    full = CubeCapture(mesh, args.size, sky=sky, effects=all_eff, ctx=ctx, cull_chunks=False)
+    fast.capture(pos[0]), full.capture(pos[0])  # warm-up (shader JIT)
+    acc = {k: {"wall": 0.0, "render": 0.0, "readback": 0.0} for k in ("culled", "unculled")}
+    identical = True
+    for _ in range(args.rounds):
+        for key, cap in (("culled", fast), ("unculled", full)):
+            dt, per, s = _timed(cap, pos)
+            acc[key]["wall"] += dt
+            acc[key]["render"] += per["render"] / args.rounds
+            acc[key]["readback"] += per["readback"] / args.rounds
+            if key == "culled":
+                got = s
+        identical &= bool(np.array_equal(got.rgba, s.rgba) and np.array_equal(got.distance, s.distance)
+                          and np.array_equal(got.backfacing, s.backfacing))
+    stats = {k: [] for k in ("cull_s", "triangles", "draw_calls")}
+    stats_full = {k: [] for k in ("triangles", "draw_calls")}
+    for p in pos:
+        a, b = fast.capture(p).draw_stats, full.capture(p).draw_stats
+        for k in stats:
+            stats[k].append(a[k])
+        for k in stats_full:
+            stats_full[k].append(b[k])
+    n_total = args.rounds * args.probes
+    compare = {
+        key: {"probes_per_s": n_total / acc[key]["wall"], "wall_per_probe_s": acc[key]["wall"] / n_total,
+              "per_probe_s": {"render": acc[key]["render"], "readback": acc[key]["readback"]}}
+        for key in acc
+    }
+    compare["culled"]["per_probe_s"]["cull"] = float(np.mean(stats["cull_s"]))
+    compare["culled"]["triangles_per_probe"] = float(np.mean(stats["triangles"]))
+    compare["culled"]["draw_calls_per_probe"] = float(np.mean(stats["draw_calls"]))
+    compare["unculled"]["triangles_per_probe"] = float(np.mean(stats_full["triangles"]))
+    compare["unculled"]["draw_calls_per_probe"] = float(np.mean(stats_full["draw_calls"]))
+    ratio = compare["culled"]["probes_per_s"] / compare["unculled"]["probes_per_s"]
+    per_set = dict(fast.pass_times_s)
+    fast.release()
+    full.release()
+    print(f"all effects: culled {compare['culled']['probes_per_s']:.1f} probes/s, unculled "
+          f"{compare['unculled']['probes_per_s']:.1f} probes/s, ratio {ratio:.2f}x, identical={identical}")
+
+    # Per effect subset (culled path only).
     results: dict[str, dict] = {}
     for label, eff in subsets.items():
         t0 = time.perf_counter()
         cap = CubeCapture(mesh, args.size, sky=sky, effects=eff, ctx=ctx)
         setup = time.perf_counter() - t0
         cap.capture(pos[0])  # warm-up
-        t0 = time.perf_counter()
-        s = cap.capture_many(pos, progress=False)
-        dt = time.perf_counter() - t0
+        dt, per, _ = _timed(cap, pos)
         results[label] = {"probes_per_s": args.probes / dt, "setup_s": setup,
-                          "per_set_passes_s": {k: v for k, v in cap.pass_times_s.items()},
-                          "per_probe_s": {k: s.pass_times_s[k] / args.probes for k in ("render", "readback")}}
-        last = cap.capture(pos[0])
+                          "per_set_passes_s": dict(cap.pass_times_s), "per_probe_s": per}
         cap.release()
         print(f"{label:24s} {results[label]['probes_per_s']:7.1f} probes/s  setup {setup * 1e3:7.1f} ms")
-    # Naive baseline: everything re-done per probe (all effects).
+
+    # Naive baseline: everything re-done per probe (all effects, culled).
     t0 = time.perf_counter()
     for i in range(args.baseline_probes):
-        c = CubeCapture(mesh, args.size, sky=sky, effects=subsets["all"], ctx=ctx)
-        b = c.capture(pos[0])
+        c = CubeCapture(mesh, args.size, sky=sky, effects=all_eff, ctx=ctx)
+        c.capture(pos[i % len(pos)])
         c.release()
     naive = args.baseline_probes / (time.perf_counter() - t0)
-    same = bool(np.array_equal(b.rgba, last.rgba) and np.array_equal(b.distance, last.distance))
-    out = {"scene": name, "triangles": mesh.triangle_count, "size": args.size, "probes": args.probes,
-           "subsets": results, "naive_all_probes_per_s": naive,
-           "speedup_vs_naive": results["all"]["probes_per_s"] / naive, "naive_output_identical": same}
-    print(f"naive (re-upload per probe) {naive:.2f} probes/s; speedup {out['speedup_vs_naive']:.1f}x; identical={same}")
+    load_after = os.getloadavg()
+    out = {
+        "scene": name, "triangles": mesh.triangle_count, "size": args.size, "probes": args.probes,
+        "rounds": args.rounds, "cpu_count": os.cpu_count(), "LP_NUM_THREADS": os.environ.get("LP_NUM_THREADS"),
+        "load_average_1_5_15_before": list(load_before), "load_average_1_5_15_after": list(load_after),
+        "all_effects": compare, "culled_over_unculled": ratio, "culled_output_identical": identical,
+        "per_set_passes_s": per_set, "subsets": results, "naive_all_probes_per_s": naive,
+        "speedup_vs_naive": compare["culled"]["probes_per_s"] / naive,
+    }
+    print(f"naive (re-create per probe) {naive:.2f} probes/s; load {load_before[0]:.2f} -> {load_after[0]:.2f}")
     with atomic_output_dir(args.out) as d:
         (Path(d) / "capture.json").write_text(json.dumps(out, indent=2))
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        labels = list(results) + ["naive (all)"]
-        vals = [results[k]["probes_per_s"] for k in results] + [naive]
-        fig, ax = plt.subplots(figsize=(7, 3.2))
-        ax.barh(labels, vals, color=["C0"] * len(results) + ["C3"])
-        ax.axvline(20, color="k", ls="--", lw=0.8, label="goal 20 probes/s")
-        ax.set_xlabel(f"probes/s at 6x{args.size}^2, {mesh.triangle_count} triangles")
-        ax.legend(loc="lower right")
-        fig.tight_layout()
-        fig.savefig(Path(d) / "capture.png", dpi=100)
-        plt.close(fig)
+        _plot(Path(d) / "capture.png", out, mesh.triangle_count, args.size)
     ctx.release()
-    return 0 if same else 1
+    return 0 if identical else 1
+
+
+def _plot(path: Path, out: dict, tris: int, size: int) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cmp_ = out["all_effects"]
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 3.6), gridspec_kw={"width_ratios": [3, 2]})
+    labels = [f"{k} (culled)" for k in out["subsets"]] + ["all, unculled (draw everything)", "all, naive (re-create)"]
+    vals = [v["probes_per_s"] for v in out["subsets"].values()] + [cmp_["unculled"]["probes_per_s"],
+                                                                  out["naive_all_probes_per_s"]]
+    ax.barh(labels, vals, color=["C0"] * len(out["subsets"]) + ["C1", "C3"])
+    ax.axvline(20, color="k", ls="--", lw=0.8, label="goal 20 probes/s")
+    ax.set_xlabel(f"probes/s at 6x{size}^2, {tris} triangles")
+    ax.legend(loc="lower right", fontsize=8)
+    ax.set_title(f"load avg {out['load_average_1_5_15_before'][0]:.1f}, {out['cpu_count']} cores", fontsize=9)
+    keys = ["culled", "unculled"]
+    bottom = np.zeros(2)
+    for part, col in (("cull", "C2"), ("render", "C0"), ("readback", "C4")):
+        v = np.array([cmp_[k]["per_probe_s"].get(part, 0.0) * 1e3 for k in keys])
+        bx.bar(keys, v, bottom=bottom, color=col, label=part)
+        bottom += v
+    for i, k in enumerate(keys):
+        bx.text(i, bottom[i], f"{cmp_[k]['triangles_per_probe'] / 1e3:.0f}k tris\n{cmp_[k]['draw_calls_per_probe']:.0f} draws",
+                ha="center", va="bottom", fontsize=8)
+    bx.set_ylabel("ms per probe (all effects)")
+    bx.set_ylim(0, bottom.max() * 1.3)
+    bx.set_title(f"culled / unculled = {out['culled_over_unculled']:.2f}x", fontsize=9)
+    bx.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
