@@ -330,9 +330,15 @@ def chunk_face_visibility(lo: NDArray[np.floating], hi: NDArray[np.floating], pr
     return vis.T
 
 
-def _box_distance(lo: NDArray[np.float64], hi: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Euclidean distance (m) from ``p`` to each box (0 inside), (C,)."""
-    d = np.maximum(np.maximum(lo - p, p - hi), 0.0)
+def _box_far_distance(lo: NDArray[np.float64], hi: NDArray[np.float64], p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Distance (m) from ``p`` to the farthest corner of each box, (C,): the draw-order key.
+
+    Ordering by it draws small nearby chunks first and big boxes (the ground, long facades with
+    details 1.5 cm in front of them) late, which lets the early depth test reject more hidden
+    fragments than ordering by the nearest point (measured: 1.32 vs 1.55 shaded fragments per
+    visible texel on canyon; 1.41 in buffer order).
+    """
+    d = np.maximum(np.abs(lo - p), np.abs(hi - p))
     return np.sqrt(np.einsum("ci,ci->c", d, d))
 
 
@@ -379,7 +385,7 @@ class CubeCapture:
         Cube face size on which the sky's radiance is projected to SH.
     cull_chunks:
         Draw, for each face, only the triangle chunks whose box reaches that face's frustum,
-        nearest chunk first (:func:`chunk_triangles`, :func:`chunk_face_visibility`).  The output
+        near chunks first (:func:`chunk_triangles`, :func:`chunk_face_visibility`).  The output
         is the same as with ``False`` (every triangle drawn for every face, one draw call), only
         faster; ``False`` is the simple reference path.
     chunk_size:
@@ -588,11 +594,11 @@ class CubeCapture:
             return None
         t0 = time.perf_counter()
         vis = chunk_face_visibility(ch.lo, ch.hi, p, self.near, self.far)  # (6, C)
-        dist = _box_distance(ch.lo, ch.hi, p)
+        dist = _box_far_distance(ch.lo, ch.hi, p)
         draws = []
         for f in range(6):
             ids = np.flatnonzero(vis[f])
-            ids = ids[np.argsort(dist[ids], kind="stable")]  # nearest first: early depth rejects the rest
+            ids = ids[np.argsort(dist[ids], kind="stable")]  # near first: early depth rejects the rest
             runs = _runs(ids, ch.first, ch.count)
             draws.append(runs)
             stats["triangles"] += float(ch.count[ids].sum())
