@@ -643,6 +643,7 @@ def evaluate_scene(
     suns = list(dict.fromkeys(bool(v) for v in sun_variants))
     if not suns:
         raise ValueError("sun_variants must hold True and/or False")
+    primary = False if False in suns else True   # the variant of the strips and of worst-position picks
     n = int(resolution) if resolution is not None else min(int(probe_set.resolution), 64)
     if n < 4:
         raise ValueError(f"evaluation resolution must be >= 4 texels per face, got {n}")
@@ -682,6 +683,7 @@ def evaluate_scene(
         cap = truth_r.capture(x)
         parts = truth_r.filtered(cap.rgba, lps)
         out_rows, out_shade, store = [], [], {"truth": {}, "pred": {}}
+        misfit = plane_misfit(x, cap.distance, cap.rgba[..., 3], predictor.local_street(ep.street, x))
         t0 = time.perf_counter()
         for w, part in parts.items():
             m = part["street"].shape[1]
@@ -692,7 +694,7 @@ def evaluate_scene(
                 composite_rows.append({"position_index": ep.index, "lobe_power": _lp_key(w),
                                        "rel_rmse": relative_rmse(truth[True], tp) if True in truth else float("nan")})
             if keep:
-                store["truth"][w] = truth[True] if True in truth else truth[False]
+                store["truth"][w] = truth[primary]
             for meth in methods:
                 st = predictor.street_rgba(meth, ep.street, x, d, np.full(d.shape[0], w)).reshape(6, m, m, 4)
                 if not np.all(np.isfinite(st)):
@@ -702,8 +704,9 @@ def evaluate_scene(
                     out_rows.append({"street": ep.street, "position_index": ep.index, "method": meth,
                                      "lobe_power": _lp_key(w), "sun": sun, "rel_rmse": relative_rmse(pr, truth[sun]),
                                      "lateral_m": ep.lateral, "along_m": ep.along, "height_m": ep.height,
-                                     "near_crossing": ep.near_crossing, "position": list(ep.position)})
-                    if keep and sun == suns[0]:
+                                     "near_crossing": ep.near_crossing, "plane_misfit": misfit,
+                                     "position": list(ep.position)})
+                    if keep and sun == primary:
                         store["pred"][(meth, w)] = pr
         times["predictions_s"] += time.perf_counter() - t0
         if want_shading and materials:
@@ -741,7 +744,7 @@ def evaluate_scene(
         key = "planes_mip" if "planes_mip" in methods else methods[0]
         wkey = 64.0 if 64.0 in lps else lps[0]
         cand = [(r["rel_rmse"], r["position_index"]) for r in rows
-                if r["method"] == key and r["lobe_power"] == _lp_key(wkey) and r["sun"] == suns[0]]
+                if r["method"] == key and r["lobe_power"] == _lp_key(wkey) and r["sun"] == primary]
         for _, idx in sorted(cand, reverse=True)[: max(0, keep_worst)]:
             _, _, store = run_position(pos_list[idx], True, False)
             store["maps"] = {k: relative_error_map(v, store["truth"][k[1]]) for k, v in store["pred"].items()}
@@ -758,7 +761,7 @@ def evaluate_scene(
     summary = summarize(scene.name, rows)
     meta = {"resolution": n, "probe_resolution": int(probe_set.resolution), "probe_spacing": manifest.get("probe_spacing"),
             "probe_count": int(probe_set.layer_count), "methods": methods, "lobe_powers": [_lp_key(w) for w in lps],
-            "sun_variants": suns, "quality": quality,
+            "sun_variants": suns, "primary_sun": primary, "quality": quality,
             "sweep": {"per_street": sweep.per_street, "margin_m": sweep.margin, "end_margin_m": sweep.end_margin,
                       "heights_m": list(sweep.heights), "seed": sweep.seed} if positions is None else "explicit",
             "n_positions": len(pos_list), "grid_sizes": {_lp_label(w): truth_grid_size(w, n) for w in lps},
@@ -768,6 +771,32 @@ def evaluate_scene(
     return EvaluationResult(scene.name, pos_list, rows, summary, shading, times, meta,
                             floor=summarize(scene.name, floor_rows),
                             strips={"positions": kept, "key_method": key, "key_power": wkey})
+
+
+def plane_misfit(x: ArrayLike, distance: NDArray, alpha: NDArray, street: px.RuntimeStreet, rel: float = 0.2,
+                 abs_m: float = 0.25) -> float:
+    """Share of the sphere (solid-angle weighted, 0..1) seen from ``x`` where the three nominal
+    planes of the nearest probe are the wrong model: the true hit distance (``distance``
+    ``(6, N, N)`` m from ``x``, geometry where ``alpha > 0.5``) and the planes' exit distance
+    differ by more than ``rel`` (relative) + ``abs_m`` (m), or one of them sees the sky (no
+    hit within 1 km) and the other does not.  Gaps, crossings, setbacks and open squares raise it.
+    """
+    x = np.asarray(x, np.float64)
+    n = distance.shape[1]
+    d = cubemod.texel_directions(n)
+    i = int(px.nearest_probe(x[street.along], street.along_coords))
+    planes = street.planes[i]
+    xc = px.clamp_to_street(x, planes, street.along)
+    t_model = px.exit_distance(xc, d, planes, street.along)
+    geo = (np.asarray(alpha) > 0.5) & (np.asarray(distance) > 0)
+    t_true = np.where(geo, np.asarray(distance, np.float64), np.inf)
+    far = 1000.0
+    sky_true, sky_model = ~(t_true < far), ~(t_model < far)
+    with np.errstate(invalid="ignore"):
+        close = np.abs(t_true - t_model) <= rel * np.minimum(t_true, t_model) + abs_m
+    ok = (sky_true & sky_model) | (~sky_true & ~sky_model & close)
+    om = cubemod.texel_solid_angles(n)
+    return float(np.sum(om[~ok]) / (4.0 * np.pi))
 
 
 def summarize(scene: str, rows: Sequence[Mapping[str, Any]], by: Sequence[str] = ("method", "lobe_power", "sun")) -> list[dict[str, Any]]:

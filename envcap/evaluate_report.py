@@ -53,10 +53,12 @@ def by_offset(res: EvaluationResult) -> list[dict[str, Any]]:
     """Mean error per method and lobe power in bins of |lateral|, along (to the nearest probe) and height."""
     out = []
     specs = {"lateral_m": ("abs", [0, 1.5, 3, 5, 8, 1e9]), "along_m": ("", [0, 0.75, 1.5, 2.5, 5, 1e9]),
-             "height_m": ("", [0, 1.0, 2.0, 1e9])}
+             "height_m": ("", [0, 1.0, 2.0, 1e9]), "plane_misfit": ("", [0, 0.05, 0.15, 0.3, 1e9])}
     for key, (mode, edges) in specs.items():
         groups: dict[tuple, list[float]] = {}
         for r in res.rows:
+            if key not in r:
+                continue
             v = abs(r[key]) if mode == "abs" else r[key]
             b = int(_bins(np.array([v]), edges)[0])
             groups.setdefault((r["method"], r["lobe_power"], r.get("sun", True), b), []).append(r["rel_rmse"])
@@ -104,6 +106,24 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
                                                and r["sun"] == sun), math.nan)) for lp in lps])
             parts += [f"Error of `nearest` / error of method (higher is better), {label}:", "",
                       _md_table(["method"] + [_lp_label(lp) for lp in lps], rrows), ""]
+        bo = by_offset(res)
+        sun_b = False if False in res.meta.get("sun_variants", [True]) else True
+        lp_b = 64.0 if 64.0 in lps else lps[0]
+        meths = [m for m in ("nearest", "planes_mip", best) if m in res.meta["methods"]]
+        meths = list(dict.fromkeys(meths))
+        brows = []
+        for key in ("lateral_m", "along_m", "height_m", "plane_misfit"):
+            bins = list(dict.fromkeys(r["bin"] for r in bo if r["offset"] == key))
+            for b in bins:
+                vals = [next((r for r in bo if r["offset"] == key and r["bin"] == b and r["method"] == m
+                              and r["lobe_power"] == lp_b and r["sun"] == sun_b), None) for m in meths]
+                if vals[0] is None:
+                    continue
+                brows.append([key.replace("_m", " (m)").replace("lateral", "|lateral|"), b, str(vals[0]["n"])]
+                             + [_fmt(v["rel_rmse"]) if v else "–" for v in vals])
+        parts += [f"### By offset ({_lp_label(lp_b)}, {'sun out of the sky' if not sun_b else 'sun in the sky'}); "
+                  "plane_misfit = share of the sphere where the three planes are the wrong model", "",
+                  _md_table(["offset", "bin", "positions"] + meths, brows), ""]
         cr = [r for r in res.rows if r["near_crossing"]]
         if cr:
             nc = summarize(res.scene, cr)
@@ -137,7 +157,7 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
                                             [[f"{t.get(k, 0):.1f} s" for k in ("captures_s", "filtering_s", "predictions_s",
                                                                                "shading_s", "total_s")]]), ""]
     parts += ["Plots: `error_vs_lateral.png`, `error_vs_lobe.png`; worst positions: `worst_*.png` "
-              "(truth | nearest | planes_mip | best, one exposure) and `worst_*_error.png` (relative error maps).", ""]
+              "(truth | nearest | planes_mip | best, one exposure, primary sky variant) and `worst_*_error.png` (relative error maps); `error_vs_misfit.png`.", ""]
     return "\n".join(parts)
 
 
@@ -155,7 +175,8 @@ def _plots(results: Sequence[EvaluationResult], out: Path) -> list[str]:
     fig, axes = plt.subplots(1, len(powers), figsize=(6 * len(powers), 4.2), dpi=100, squeeze=False)
     for ax, lp in zip(axes[0], powers):
         for m in methods:
-            rr = [r for res in results for r in res.rows if r["method"] == m and r["lobe_power"] == lp and r.get("sun", True)]
+            rr = [r for res in results for r in res.rows if r["method"] == m and r["lobe_power"] == lp
+                  and r.get("sun", True) == res.meta.get("primary_sun", True)]
             if not rr:
                 continue
             lat = np.array([r["lateral_m"] for r in rr])
@@ -172,27 +193,45 @@ def _plots(results: Sequence[EvaluationResult], out: Path) -> list[str]:
         ax.set_xlabel("|lateral offset| from the probe line (m)")
         ax.set_ylabel("relative RMSE of luminance")
         ax.set_yscale("log")
-        ax.set_title(f"{_lp_label(lp)} ({', '.join(r.scene for r in results)})")
+        ax.set_title(f"{_lp_label(lp)}, primary sky variant ({', '.join(r.scene for r in results)})")
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(out / "error_vs_lateral.png")
     plt.close(fig)
     files.append("error_vs_lateral.png")
+    # error vs plane misfit (where three planes are the wrong model), w = 64, sun out of the sky if evaluated
+    fig, ax = plt.subplots(figsize=(6.5, 4.2), dpi=100)
+    for m in [m for m in ("nearest", "planes_mip", "fitted_planes_mip", "depth_reproject", "blend") if m in methods]:
+        rr = [r for res in results for r in res.rows if r["method"] == m and r["lobe_power"] == 64.0
+              and r.get("sun", True) == (False not in res.meta.get("sun_variants", [True])) and "plane_misfit" in r]
+        if rr:
+            ax.scatter([r["plane_misfit"] for r in rr], [r["rel_rmse"] for r in rr], s=9, color=colors[m], alpha=0.6, label=m)
+    ax.set_xlabel("plane misfit: share of the sphere where three planes are wrong")
+    ax.set_ylabel("relative RMSE (w=64)")
+    ax.set_yscale("log")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "error_vs_misfit.png")
+    plt.close(fig)
+    files.append("error_vs_misfit.png")
     # error vs lobe power, one panel per scene
     fig, axes = plt.subplots(1, len(results), figsize=(4.2 * len(results), 4.0), dpi=100, squeeze=False)
     for ax, res in zip(axes[0], results):
         lps = [lp for lp in res.meta["lobe_powers"]]
         xs = [4 * max(lp for lp in lps if lp is not None) if lp is None else lp for lp in lps] if any(lps) else [1]
         for m in res.meta["methods"]:
-            ax.plot(xs, [res.error(m, lp) for lp in lps], "-o", ms=3, color=colors[m], label=m)
             if False in res.meta.get("sun_variants", []):
-                ax.plot(xs, [res.error(m, lp, sun=False) for lp in lps], ":", color=colors[m], lw=1)
+                ax.plot(xs, [res.error(m, lp, sun=False) for lp in lps], "-o", ms=3, color=colors[m], label=m)
+            if True in res.meta.get("sun_variants", [True]):
+                ax.plot(xs, [res.error(m, lp) for lp in lps], ":", color=colors[m], lw=1,
+                        label=None if False in res.meta.get("sun_variants", []) else m)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("lobe power w (rightmost: mirror)")
         ax.set_ylabel("mean relative RMSE")
-        ax.set_title(f"{res.scene} (dotted: sun out of the sky)")
+        ax.set_title(f"{res.scene} (solid: sun out of the sky; dotted: sun in it)")
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
@@ -217,7 +256,7 @@ def _strips(res: EvaluationResult, out: Path) -> list[str]:
             cubes = [store["truth"][w]] + [store["pred"][(m, w)] for m in show]
             up = max(1, 48 // cubes[0].shape[1])   # blow small grids up (nearest) so they can be seen
             cubes = [np.repeat(np.repeat(c, up, axis=1), up, axis=2) for c in cubes]
-            sun0 = res.meta.get("sun_variants", [True])[0]
+            sun0 = res.meta.get("primary_sun", True)
             errs = {m: next(r["rel_rmse"] for r in res.rows if r["position_index"] == idx and r["method"] == m
                             and r["lobe_power"] == (None if math.isinf(w) else w) and r.get("sun", True) == sun0) for m in show}
             labels = [f"truth {_lp_label(w)}"] + [f"{m} err {errs[m]:.3f}" for m in show]
