@@ -39,7 +39,7 @@ __all__ = [
 # quality -> (q: source texels per lobe RMS angle, eps: footprint truncation (weights < eps * peak /
 # dynamic range dropped), smallest source face size used).  Measured accuracy: docs/prefilter.md.
 QUALITY: dict[str, tuple[float, float, int]] = {
-    "fast": (2.0, 1e-3, 16),
+    "fast": (4.0, 1e-3, 16),
     "default": (4.0, 1e-4, 32),
     "high": (8.0, 1e-9, 64),
 }
@@ -47,7 +47,7 @@ HOT_FACTOR = 1e3
 """Level-0 texels brighter than this x the median positive luminance are summed exactly (the sun)."""
 MAX_HOT = 256
 """At most this many hot texels per cube (the brightest); the rest stay in the source levels."""
-_LOOP_BUDGET = 48000  # llvmpipe ends a shader's loops after 65535 iterations in all
+_LOOP_BUDGET = 30000  # llvmpipe ends a shader's loops after 65535 iterations in all
 _LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 # Face frames of envcap.cube: direction = N + u A + v B.
