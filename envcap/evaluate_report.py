@@ -119,7 +119,9 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
                               and r["lobe_power"] == lp_b and r["sun"] == sun_b), None) for m in meths]
                 if vals[0] is None:
                     continue
-                brows.append([key.replace("_m", " (m)").replace("lateral", "|lateral|"), b, str(vals[0]["n"])]
+                label = {"lateral_m": "|lateral| (m)", "along_m": "along to nearest probe (m)", "height_m": "height (m)",
+                         "plane_misfit": "plane misfit"}[key]
+                brows.append([label, b, str(vals[0]["n"])]
                              + [_fmt(v["rel_rmse"]) if v else "–" for v in vals])
         parts += [f"### By offset ({_lp_label(lp_b)}, {'sun out of the sky' if not sun_b else 'sun in the sky'}); "
                   "plane_misfit = share of the sphere where the three planes are the wrong model", "",
@@ -134,13 +136,15 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
         if res.floor:
             lps_f = sorted({r["lobe_power"] for r in res.floor}, key=lambda v: -math.inf if v is None else -v)
             frows = []
-            for m in ("nearest", "planes_mip", best):
-                frows.append([m] + [_fmt(next((r["rel_rmse"] for r in res.floor if r["method"] == m and r["lobe_power"] == lp
-                                               and r["sun"]), math.nan)) for lp in lps_f])
+            for sun in res.meta.get("sun_variants", [True]):
+                for m in list(dict.fromkeys(("nearest", "planes_mip", best))):
+                    frows.append([f"{m} ({'sun' if sun else 'no sun'})"] + [
+                        _fmt(next((r["rel_rmse"] for r in res.floor if r["method"] == m and r["lobe_power"] == lp
+                                   and r["sun"] == sun), math.nan)) for lp in lps_f])
             ce = res.meta.get("composite_error") or []
             frows.append(["sky composited after filtering vs filtered composite"] +
                          [_fmt(next((r["rel_rmse"] for r in ce if r["lobe_power"] == lp), math.nan)) for lp in lps_f])
-            parts += ["### Floor: evaluated at probe positions (chain interpolation and filtering only; sun in the sky)", "",
+            parts += ["### Floor: evaluated at probe positions (chain interpolation and filtering only)", "",
                       _md_table(["method"] + [_lp_label(lp) for lp in lps_f], frows), ""]
         if res.shading:
             mats = sorted({r["material"] for r in res.shading})
