@@ -230,6 +230,100 @@ def _gl_mat(m: NDArray[np.floating]) -> bytes:
     return np.ascontiguousarray(np.asarray(m, dtype=np.float32).T).tobytes()
 
 
+def face_clip_matrix_reversed(face: int, near: float = 0.05, far: float = math.inf) -> NDArray[np.float64]:
+    """Like :func:`face_clip_matrix` but with reversed depth for ``glClipControl(.., ZERO_TO_ONE)``.
+
+    ``x``, ``y``, ``w`` rows are those of :func:`face_clip_matrix`; NDC depth ``z / w`` is 1 at
+    ``ma = near`` and 0 at ``ma = far`` (``inf``: ``z / w = near / ma``).  Stored in a float32
+    depth buffer this keeps a relative precision of about 2^-24 in distance at every range
+    (a 24-bit buffer with the standard mapping resolves only ~10 cm at 300 m).  Row-major.
+    """
+    if not (0 < near < far):
+        raise ValueError(f"need 0 < near < far, got near={near}, far={far}")
+    m = face_clip_matrix(face, near, far)
+    r = _FACE_ROWS[face]
+    if math.isinf(far):
+        a, b = 0.0, near
+    else:
+        a, b = -near / (far - near), near * far / (far - near)
+    m[2, :3] = a * r[2]
+    m[2, 3] = b
+    return m
+
+
+class _DepthGL:
+    """The raw GL calls moderngl 5.13 lacks for reversed depth: a float32 depth renderbuffer
+    attached to a moderngl framebuffer, and ``glClipControl`` (core since OpenGL 4.5)."""
+
+    GL_FRAMEBUFFER = 0x8D40
+    GL_RENDERBUFFER = 0x8D41
+    GL_DEPTH_ATTACHMENT = 0x8D00
+    GL_DEPTH_COMPONENT32F = 0x8CAC
+    GL_FRAMEBUFFER_COMPLETE = 0x8CD5
+    GL_FRAMEBUFFER_BINDING = 0x8CA6
+    GL_CLIP_ORIGIN = 0x935C
+    GL_CLIP_DEPTH_MODE = 0x935D
+    GL_ZERO_TO_ONE = 0x935F
+    GL_LOWER_LEFT = 0x8CA1
+    GL_DEPTH_FUNC = 0x0B74
+    GL_GREATER = 0x0204
+
+    def __init__(self) -> None:
+        import ctypes
+        import os
+
+        c = ctypes
+        sig: dict[str, tuple[Any, tuple[Any, ...]]] = {
+            "glClipControl": (None, (c.c_uint, c.c_uint)),
+            "glDepthFunc": (None, (c.c_uint,)),
+            "glGetIntegerv": (None, (c.c_uint, c.POINTER(c.c_int))),
+            "glGenRenderbuffers": (None, (c.c_int, c.POINTER(c.c_uint))),
+            "glDeleteRenderbuffers": (None, (c.c_int, c.POINTER(c.c_uint))),
+            "glBindRenderbuffer": (None, (c.c_uint, c.c_uint)),
+            "glRenderbufferStorage": (None, (c.c_uint, c.c_uint, c.c_int, c.c_int)),
+            "glBindFramebuffer": (None, (c.c_uint, c.c_uint)),
+            "glFramebufferRenderbuffer": (None, (c.c_uint, c.c_uint, c.c_uint, c.c_uint)),
+            "glCheckFramebufferStatus": (c.c_uint, (c.c_uint,)),
+        }
+        egl = c.CDLL(os.environ.get("ENVCAP_LIBEGL", "libEGL.so.1"))
+        egl.eglGetProcAddress.restype = c.c_void_p
+        egl.eglGetProcAddress.argtypes = [c.c_char_p]
+        for name, (res, args) in sig.items():
+            ptr = egl.eglGetProcAddress(name.encode())
+            if not ptr:
+                raise RuntimeError(f"OpenGL entry point {name} not available through EGL (needs OpenGL 4.5)")
+            setattr(self, name, c.CFUNCTYPE(res, *args)(ptr))
+        self._c = c
+
+    def get(self, pname: int) -> int:
+        v = self._c.c_int(0)
+        self.glGetIntegerv(pname, self._c.byref(v))
+        return int(v.value)
+
+    def attach_float_depth(self, fbo_glo: int, width: int, height: int) -> int:
+        """Replace the depth attachment of framebuffer ``fbo_glo`` by a new DEPTH_COMPONENT32F
+        renderbuffer; returns its name.  Raises ``RuntimeError`` if the result is incomplete."""
+        c = self._c
+        rb = c.c_uint(0)
+        self.glGenRenderbuffers(1, c.byref(rb))
+        self.glBindRenderbuffer(self.GL_RENDERBUFFER, rb.value)
+        self.glRenderbufferStorage(self.GL_RENDERBUFFER, self.GL_DEPTH_COMPONENT32F, width, height)
+        prev = self.get(self.GL_FRAMEBUFFER_BINDING)
+        self.glBindFramebuffer(self.GL_FRAMEBUFFER, fbo_glo)
+        self.glFramebufferRenderbuffer(self.GL_FRAMEBUFFER, self.GL_DEPTH_ATTACHMENT, self.GL_RENDERBUFFER, rb.value)
+        status = self.glCheckFramebufferStatus(self.GL_FRAMEBUFFER)
+        self.glBindFramebuffer(self.GL_FRAMEBUFFER, prev)
+        self.glBindRenderbuffer(self.GL_RENDERBUFFER, 0)
+        if status != self.GL_FRAMEBUFFER_COMPLETE:
+            self.delete_renderbuffer(rb.value)
+            raise RuntimeError(f"float32 depth framebuffer incomplete (status 0x{status:04X})")
+        return int(rb.value)
+
+    def delete_renderbuffer(self, name: int) -> None:
+        rb = self._c.c_uint(name)
+        self.glDeleteRenderbuffers(1, self._c.byref(rb))
+
+
 @dataclass(frozen=True)
 class TriangleChunks:
     """Triangles grouped into spatial chunks: contiguous ranges of a reordered index buffer.
@@ -469,7 +563,11 @@ class CubeCapture:
         self._color = ctx.texture((3 * n, 2 * n), 4, dtype="f4")
         self._depth = ctx.depth_renderbuffer((3 * n, 2 * n))
         self._fbo = ctx.framebuffer([self._color], self._depth)
-        self._face_mats = [_gl_mat(face_clip_matrix(f, self.near, self.far)) for f in range(6)]
+        # Reversed depth in a float32 buffer (face_clip_matrix_reversed): the 24-bit buffer that
+        # moderngl makes cannot separate a window from its wall (1.5 cm) beyond ~110 m.
+        self._gl = _DepthGL()
+        self._depth32 = self._gl.attach_float_depth(self._fbo.glo, 3 * n, 2 * n)
+        self._face_mats = [_gl_mat(face_clip_matrix_reversed(f, self.near, self.far)) for f in range(6)]
         self._shadow_tex = self._shadow_fbo = None
         self._shadow_objs: list[Any] = []
 
@@ -547,8 +645,12 @@ class CubeCapture:
         t0 = time.perf_counter()
         self._fbo.use()
         self._fbo.viewport = (0, 0, 3 * n, 2 * n)
-        self._fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        self._fbo.clear(0.0, 0.0, 0.0, 0.0, depth=0.0)  # reversed depth: 0 is infinitely far
         if self._vao is not None:
+            gl = self._gl
+            saved = (gl.get(gl.GL_CLIP_ORIGIN), gl.get(gl.GL_CLIP_DEPTH_MODE), gl.get(gl.GL_DEPTH_FUNC))
+            gl.glClipControl(gl.GL_LOWER_LEFT, gl.GL_ZERO_TO_ONE)
+            gl.glDepthFunc(gl.GL_GREATER)
             ctx.enable(ctx.DEPTH_TEST)
             ctx.disable(ctx.CULL_FACE)  # both sides: back faces are seen (and marked) from inside buildings
             ctx.disable(ctx.BLEND)
@@ -565,6 +667,8 @@ class CubeCapture:
                 else:
                     for first, count in draws[f]:
                         self._vao.render(vertices=3 * count, first=3 * first)
+            gl.glClipControl(saved[0], saved[1])  # leave the context as found
+            gl.glDepthFunc(saved[2])
             ctx.finish()
         t1 = time.perf_counter()
         # Read each face's n x n block straight into its slot of (6, N, N, 4): no transpose copy.
@@ -643,6 +747,9 @@ class CubeCapture:
         for o in [self._vao, self._vbo, self._ibo, self._fbo, self._color, self._depth, self._prog, *self._shadow_objs]:
             if o is not None:
                 o.release()
+        if self._depth32:
+            self._gl.delete_renderbuffer(self._depth32)
+            self._depth32 = 0
         self._vao = None
         self._shadow_objs = []
         if self._own_ctx:

@@ -396,3 +396,25 @@ def test_chunk_triangles_partition_and_bounds(gl_ctx):
             chunk_triangles(m.positions, m.indices, bad)
         with pytest.raises(ValueError, match="chunk cell size"):
             CubeCapture(box((0, 0, 0), (1, 1, 1)), 2, chunk_size=bad, ctx=gl_ctx)
+
+
+def test_window_1p5cm_in_front_of_its_wall_wins_at_300m(gl_ctx):
+    """Float32 reversed depth: a 24-bit standard depth buffer ties these two planes at 300 m
+    (resolution ~10 cm there) and would show the wall drawn first."""
+    from envcap.capture import _DepthGL
+
+    d = 300.0
+    wall = quad((d + 0.015, -150, -150), (0, 0, 300), (0, 300, 0), emission=(0, 1, 0))   # faces -x
+    window = quad((d, -120, -120), (0, 0, 240), (0, 240, 0), emission=(1, 0, 0))        # in front
+    mesh = SceneMesh.concatenate([wall, window])  # the wall first: a depth tie keeps the wall
+    with CubeCapture(mesh, 64, ctx=gl_ctx, effects={"emissive_windows"}) as cap:
+        got = cap.capture([0.0, 0.0, 0.0])
+        gl = _DepthGL()
+        assert gl.get(gl.GL_CLIP_DEPTH_MODE) == 0x935E  # NEGATIVE_ONE_TO_ONE restored
+        assert gl.get(gl.GL_DEPTH_FUNC) != gl.GL_GREATER
+    seen = got.rgba[0, ..., 3] > 0
+    dirs = cube.texel_directions(64)[0]
+    inside = np.all(np.abs(dirs[..., 1:] / dirs[..., :1]) * d < 119.0, axis=-1)  # rays hitting the window
+    assert inside.sum() > 500 and np.all(seen[inside])
+    np.testing.assert_array_equal(got.rgba[0][inside][:, :3], np.tile([1.0, 0.0, 0.0], (inside.sum(), 1)))
+    np.testing.assert_allclose(got.distance[0][inside], d / dirs[inside][:, 0], rtol=3e-5)
