@@ -4,7 +4,9 @@ A :class:`CubeCapture` uploads a :class:`~envcap.scene.model.SceneMesh` once, ru
 passes once (sky irradiance SH projection for ``sky_light``, the sun shadow map for
 ``sun_shadows``), and then captures probes: per probe, six draws (one per cube face, 90 degree
 frustum, GL face orientation of :mod:`envcap.cube`) into one reused RGBA32F render target laid
-out as a 3 x 2 grid of faces, and one readback.
+out as a 3 x 2 grid of faces with a float32 reversed depth buffer, and one readback.  Each face
+draws only the triangle chunks that can reach its frustum (:func:`chunk_triangles`,
+:func:`chunk_face_visibility`; ``cull_chunks=False`` draws everything, same output).
 
 Outputs (see ``docs/capture.md`` for the shading model and its assumptions):
 
