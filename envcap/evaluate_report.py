@@ -25,11 +25,13 @@ SHOWN = ("nearest", "planes_mip")
 
 
 def best_method(res: EvaluationResult, candidates: Sequence[str] | None = None) -> str:
-    """Method (other than ``nearest``) with the lowest mean error over all lobe powers."""
+    """Method (other than ``nearest``) with the lowest mean error over all lobe powers (primary sky variant)."""
     methods = [m for m in res.meta["methods"] if m != "nearest"] if candidates is None else list(candidates)
     if not methods:
         return res.meta["methods"][0]
-    score = {m: np.mean([r["rel_rmse"] for r in res.summary if r["method"] == m and r.get("sun", True)]) for m in methods}
+    prim = res.meta.get("primary_sun", True)
+    score = {m: np.mean([r["rel_rmse"] for r in res.summary if r["method"] == m and r.get("sun", True) == prim])
+             for m in methods}
     return min(score, key=lambda m: score[m])
 
 
@@ -197,7 +199,7 @@ def _plots(results: Sequence[EvaluationResult], out: Path) -> list[str]:
         ax.set_xlabel("|lateral offset| from the probe line (m)")
         ax.set_ylabel("relative RMSE of luminance")
         ax.set_yscale("log")
-        ax.set_title(f"{_lp_label(lp)}, primary sky variant ({', '.join(r.scene for r in results)})")
+        ax.set_title(f"{_lp_label(lp)}, all scenes")
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
@@ -221,8 +223,12 @@ def _plots(results: Sequence[EvaluationResult], out: Path) -> list[str]:
     plt.close(fig)
     files.append("error_vs_misfit.png")
     # error vs lobe power, one panel per scene
-    fig, axes = plt.subplots(1, len(results), figsize=(4.2 * len(results), 4.0), dpi=100, squeeze=False)
-    for ax, res in zip(axes[0], results):
+    ncol = min(3, len(results))
+    nrow = math.ceil(len(results) / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.6 * ncol, 3.8 * nrow), dpi=100, squeeze=False)
+    for ax in axes.ravel()[len(results):]:
+        ax.axis("off")
+    for ax, res in zip(axes.ravel(), results):
         lps = [lp for lp in res.meta["lobe_powers"]]
         xs = [4 * max(lp for lp in lps if lp is not None) if lp is None else lp for lp in lps] if any(lps) else [1]
         for m in res.meta["methods"]:
@@ -235,7 +241,7 @@ def _plots(results: Sequence[EvaluationResult], out: Path) -> list[str]:
         ax.set_yscale("log")
         ax.set_xlabel("lobe power w (rightmost: mirror)")
         ax.set_ylabel("mean relative RMSE")
-        ax.set_title(f"{res.scene} (solid: sun out of the sky; dotted: sun in it)")
+        ax.set_title(f"{res.scene} (solid: no sun; dotted: sun in sky)", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
@@ -263,7 +269,7 @@ def _strips(res: EvaluationResult, out: Path) -> list[str]:
             sun0 = res.meta.get("primary_sun", True)
             errs = {m: next(r["rel_rmse"] for r in res.rows if r["position_index"] == idx and r["method"] == m
                             and r["lobe_power"] == (None if math.isinf(w) else w) and r.get("sun", True) == sun0) for m in show}
-            labels = [f"truth {_lp_label(w)}"] + [f"{m} err {errs[m]:.3f}" for m in show]
+            labels = [f"truth {_lp_label(w)}"] + [f"{m}: {errs[m]:.3f}" for m in show]
             tag = "mirror" if math.isinf(w) else f"w{w:g}"
             name = f"worst_{res.scene}_{rank}_{tag}.png"
             contact_sheet_png(out / name, cubes, labels, cols=len(cubes))

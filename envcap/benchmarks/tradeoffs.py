@@ -1,10 +1,11 @@
 """tradeoffs: what accuracy costs - error vs time or memory for each knob (Pareto plot).
 
-On a short street segment of one scene (default: 40 m of ``canyon``), measured on this machine
+On a short street segment of each scene (default: 40 m of ``canyon`` and of ``asymmetric``), measured on this machine
 in one run, every knob is varied with the others at a fixed reference setting:
 
-* ``spacing`` (2.5, 5, 10, 20 m; probes 32^2): error vs memory and bake time per 100 m of street;
-* ``resolution`` (16, 32, 64, 128; spacing 5 m): error vs capture time per probe;
+* ``spacing`` (2.5, 5, 10, 20 m; probes 32^2; nearest, planes_mip, blend): error vs memory and
+  bake time per 100 m of street;
+* ``resolution`` (16, 32, 64, 128; spacing 5 m): error vs capture (+ prefilter) time per probe;
 * ``quality`` (fast, default, high; 64^2, spacing 5 m): error vs prefilter time per probe;
 * ``method`` (every :data:`envcap.evaluate.METHODS`; 32^2, spacing 5 m): error vs cost per lookup
   as a ratio to a plain lookup (``textureLod`` twin: one cube-array fetch at ``d``, level
@@ -33,12 +34,13 @@ LOBES = (math.inf, 256.0, 64.0, 16.0)
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, type=Path, help="output directory (written atomically)")
-    parser.add_argument("--scene", default="canyon", help="bundled scene (default canyon)")
+    parser.add_argument("--scenes", default="canyon,asymmetric",
+                        help="bundled scenes, comma-separated (default canyon,asymmetric: planar facades / ragged low side with gaps)")
     parser.add_argument("--length", type=float, default=40.0, metavar="M", help="street segment length (default 40 m)")
     parser.add_argument("--positions", type=int, default=8, metavar="K", help="evaluation positions per street (default 8)")
     parser.add_argument("--spacings", default="2.5,5,10,20", help="probe spacings in m (default 2.5,5,10,20)")
     parser.add_argument("--resolutions", default="16,32,64,128", help="capture resolutions (default 16,32,64,128)")
-    parser.add_argument("--repeats", type=int, default=3, help="timing repeats of the lookup costs (median)")
+    parser.add_argument("--repeats", type=int, default=7, help="timing repeats of the lookup costs (median)")
 
 
 def _floats(text: str, what: str) -> list[float]:
@@ -114,51 +116,58 @@ def run(args: argparse.Namespace) -> int:
     if args.positions < 1:
         raise ValueError(f"--positions must be >= 1, got {args.positions}")
     t_start = time.perf_counter()
-    scene = street_segment(load_scene(args.scene), args.length)
-    street_len = sum(st.length for st in scene.streets)
+    names = [t.strip() for t in args.scenes.split(",") if t.strip()]
+    if not names:
+        raise ValueError("--scenes: no scene given")
     sweep = Sweep(per_street=args.positions, seed=7)
     ctx = create_context()
     rows: list[dict[str, Any]] = []
     eval_kw = dict(sweep=sweep, lobe_powers=LOBES, resolution=32, ctx=ctx, materials=(), keep_worst=0,
                    floor_probes=0, sun_variants=(False,), progress=False)
-
-    def bake(res: int, spacing: float, quality: str = "default") -> tuple[Any, float]:
-        t0 = time.perf_counter()
-        ps = bake_probe_set(scene, resolution=res, spacing=spacing, quality=quality, ctx=ctx, progress=False)
-        return ps, time.perf_counter() - t0
-
+    n_pos = 0
     try:
-        for sp in spacings:
-            ps, tb = bake(32, sp)
-            res = evaluate_scene(scene, ps, methods=("planes_mip", "blend"), **eval_kw)
-            for m in ("planes_mip", "blend"):
-                rows.append({"knob": "spacing", "value": sp, "method": m, "probes": ps.layer_count,
-                             "memory_mb_per_100m": _probe_bytes(ps) / 1e6 * 100.0 / street_len,
-                             "bake_s_per_100m": tb * 100.0 / street_len, **_error(res, m)})
-        for r in resolutions:
-            ps, tb = bake(r, 5.0)
-            res = evaluate_scene(scene, ps, methods=("planes_mip",), **eval_kw)
-            t = ps.manifest["timings"]
-            rows.append({"knob": "resolution", "value": r, "method": "planes_mip", "probes": ps.layer_count,
-                         "capture_s_per_probe": t["capture_s"] / ps.layer_count,
-                         "prefilter_s_per_probe": t["prefilter_s"] / ps.layer_count,
-                         "memory_mb_per_100m": _probe_bytes(ps) / 1e6 * 100.0 / street_len, **_error(res, "planes_mip")})
-        for q in ("fast", "default", "high"):
-            ps, tb = bake(64, 5.0, q)
-            res = evaluate_scene(scene, ps, methods=("planes_mip",), **eval_kw)
-            rows.append({"knob": "quality", "value": q, "method": "planes_mip", "probes": ps.layer_count,
-                         "prefilter_s_per_probe": ps.manifest["timings"]["prefilter_s"] / ps.layer_count,
-                         **_error(res, "planes_mip")})
-        ps, _ = bake(32, 5.0)
-        res = evaluate_scene(scene, ps, methods=METHODS, **eval_kw)
-        costs = _lookup_costs(ps, scene.streets[0].name, args.repeats)
-        for m in METHODS:
-            rows.append({"knob": "method", "value": m, "method": m, "lookup_us": costs[m] * 1e6,
-                         "cost_ratio": costs[m] / costs["plain"], **_error(res, m)})
+        for name in names:
+            scene = street_segment(load_scene(name), args.length)
+            street_len = sum(st.length for st in scene.streets)
+
+            def bake(res: int, spacing: float, quality: str = "default") -> tuple[Any, float]:
+                t0 = time.perf_counter()
+                ps = bake_probe_set(scene, resolution=res, spacing=spacing, quality=quality, ctx=ctx, progress=False)
+                return ps, time.perf_counter() - t0
+
+            for sp in spacings:
+                ps, tb = bake(32, sp)
+                res = evaluate_scene(scene, ps, methods=("nearest", "planes_mip", "blend"), **eval_kw)
+                for m in ("nearest", "planes_mip", "blend"):
+                    rows.append({"scene": name, "knob": "spacing", "value": sp, "method": m, "probes": ps.layer_count,
+                                 "memory_mb_per_100m": _probe_bytes(ps) / 1e6 * 100.0 / street_len,
+                                 "bake_s_per_100m": tb * 100.0 / street_len, **_error(res, m)})
+            for r in resolutions:
+                ps, tb = bake(r, 5.0)
+                res = evaluate_scene(scene, ps, methods=("planes_mip",), **eval_kw)
+                t = ps.manifest["timings"]
+                rows.append({"scene": name, "knob": "resolution", "value": r, "method": "planes_mip", "probes": ps.layer_count,
+                             "capture_s_per_probe": t["capture_s"] / ps.layer_count,
+                             "prefilter_s_per_probe": t["prefilter_s"] / ps.layer_count,
+                             "bake_s_per_probe": tb / ps.layer_count,
+                             "memory_mb_per_100m": _probe_bytes(ps) / 1e6 * 100.0 / street_len, **_error(res, "planes_mip")})
+            for q in ("fast", "default", "high"):
+                ps, tb = bake(64, 5.0, q)
+                res = evaluate_scene(scene, ps, methods=("planes_mip",), **eval_kw)
+                rows.append({"scene": name, "knob": "quality", "value": q, "method": "planes_mip", "probes": ps.layer_count,
+                             "prefilter_s_per_probe": ps.manifest["timings"]["prefilter_s"] / ps.layer_count,
+                             **_error(res, "planes_mip")})
+            ps, _ = bake(32, 5.0)
+            res = evaluate_scene(scene, ps, methods=METHODS, **eval_kw)
+            n_pos = len(res.positions)
+            costs = _lookup_costs(ps, scene.streets[0].name, args.repeats)
+            for m in METHODS:
+                rows.append({"scene": name, "knob": "method", "value": m, "method": m, "lookup_us": costs[m] * 1e6,
+                             "cost_ratio": costs[m] / costs["plain"], **_error(res, m)})
     finally:
         ctx.release()
     total = time.perf_counter() - t_start
-    doc = {"benchmark": "tradeoffs", "scene": args.scene, "street_length_m": street_len, "positions": len(res.positions),
+    doc = {"benchmark": "tradeoffs", "scenes": names, "street_length_m": args.length, "positions_per_street": n_pos,
            "lobe_powers": ["mirror" if math.isinf(w) else w for w in LOBES], "truth_resolution": 32,
            "error": "mean rel. RMSE of luminance over positions and lobe powers, sun out of the sky",
            "lookup_timing": "numpy twin (envcap.evaluate.Predictor), 6144 directions, median of repeats; "
@@ -170,7 +179,9 @@ def run(args: argparse.Namespace) -> int:
     for r in rows:
         cost = {"spacing": "memory_mb_per_100m", "resolution": "capture_s_per_probe", "quality": "prefilter_s_per_probe",
                 "method": "cost_ratio"}[r["knob"]]
-        print(f"{r['knob']:>10} {str(r['value']):>18} {r['method']:>18}  error {r['error']:.4f}  {cost} {r[cost]:.4g}")
+        cost = "bake_s_per_probe" if r["knob"] == "resolution" else cost
+        print(f"{r['scene']:>10} {r['knob']:>10} {str(r['value']):>18} {r['method']:>18}  error {r['error']:.4f}  "
+              f"{cost} {r[cost]:.4g}")
     print(f"total {total:.1f} s; wrote {Path(args.out) / 'tradeoffs.json'} and tradeoffs.png")
     return 0
 
@@ -182,23 +193,25 @@ def _plot(rows: list[dict[str, Any]], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     panels = [("spacing", "memory_mb_per_100m", "probe memory per 100 m of street (MB, RGBA16F + depth)", "{:g} m"),
-              ("resolution", "capture_s_per_probe", "capture time per probe (s)", "{}²"),
+              ("resolution", "bake_s_per_probe", "capture + prefilter time per probe (s)", "{}²"),
               ("quality", "prefilter_s_per_probe", "prefilter time per probe (s, 64²)", "{}"),
               ("method", "cost_ratio", "cost per lookup / plain lookup (numpy twin)", "{}")]
     fig, axes = plt.subplots(1, 4, figsize=(20, 4.6), dpi=100)
     for ax, (knob, cost, xlabel, fmt) in zip(axes, panels):
         rr = [r for r in rows if r["knob"] == knob]
-        for m in sorted({r["method"] for r in rr}):
-            sub = [r for r in rr if r["method"] == m]
+        groups = sorted({(r["scene"], r["method"]) for r in rr}) if knob != "method" else sorted({(r["scene"], None) for r in rr})
+        for gi, (sc, m) in enumerate(groups):
+            sub = [r for r in rr if r["scene"] == sc and (m is None or r["method"] == m)]
             pts = [(r[cost], r["error"]) for r in sub]
             front = _pareto(pts)
-            ax.plot([p[0] for p in pts], [p[1] for p in pts], "o" if knob == "method" else "-o", ms=5,
-                    label=m if knob != "method" else None)
+            if knob == "method":
+                ax.plot([p[0] for p in pts], [p[1] for p in pts], "s^o"[gi % 3], ms=6, ls="none", label=sc)
+            else:
+                ax.plot([p[0] for p in pts], [p[1] for p in pts], "-o", ms=5, label=f"{sc}: {m}")
             for r, (c, e), f in zip(sub, pts, front):
-                ax.annotate(fmt.format(r["value"]) + ("" if f else " (dominated)"), (c, e), fontsize=7,
+                ax.annotate(fmt.format(r["value"]) + ("" if f else " (dominated)"), (c, e), fontsize=6,
                             xytext=(4, 4), textcoords="offset points")
-        if knob == "spacing":
-            ax.legend(fontsize=7)
+        ax.legend(fontsize=6)
         ax.set_xscale("log")
         ax.set_xlabel(xlabel)
         ax.set_ylabel("mean relative RMSE (no sun)")
