@@ -55,7 +55,7 @@ def bake_probe_set(
     flagged ``"inside_geometry": true`` in the manifest, with a warning on stderr.
     """
     from envcap.capture import CubeCapture, probe_inside_geometry
-    from envcap.prefilter import prefilter_chain
+    from envcap.prefilter import prefilter_chain, prefilter_many
     from envcap.sky import sky_from_spec
 
     if not scene.streets:
@@ -91,9 +91,8 @@ def bake_probe_set(
             from envcap.lobes import lobe_ladder
 
             ladder = lobe_ladder(resolution)
-            chains = [prefilter_chain(captured.rgba[i], ladder, quality=quality, ctx=ctx, progress=False)
-                      for i in range(len(positions))]
-            levels = [np.stack([c[k] for c in chains]).astype(np.float32) for k in range(ladder.levels)]
+            levels = [lv.astype(np.float32, copy=False)
+                      for lv in prefilter_many(captured.rgba, ladder, quality=quality, ctx=ctx, progress=progress)]
             sky_levels = [lv.astype(np.float32) for lv in prefilter_chain(sky_rgba, ladder, quality=quality, ctx=ctx, progress=False)]
             lobes = ladder.to_manifest()
             powers: list[float | None] = [float(w) for w in ladder.powers]
