@@ -291,9 +291,9 @@ def report_dict(results: Sequence[EvaluationResult]) -> dict[str, Any]:
     def shade_summary(res: EvaluationResult) -> list[dict[str, Any]]:
         g: dict[tuple, list[float]] = {}
         for r in res.shading:
-            g.setdefault((r["method"], r["material"]), []).append(r["rel_err"])
-        return [{"scene": res.scene, "method": m, "material": mat, "rel_err": float(np.mean(v)),
-                 "p90": float(np.percentile(v, 90)), "n_positions": len(v)} for (m, mat), v in g.items()]
+            g.setdefault((r["method"], r["material"], r["sun"]), []).append(r["rel_err"])
+        return [{"scene": res.scene, "method": m, "material": mat, "sun": sun, "rel_err": float(np.mean(v)),
+                 "p90": float(np.percentile(v, 90)), "n_positions": len(v)} for (m, mat, sun), v in g.items()]
 
     return {
         "results": [r for res in results for r in res.summary],
