@@ -2,18 +2,21 @@
 
 The scene is the bundled ``canyon`` street when ``envcap.scene.load_scene`` exists, else a
 synthetic street of ~50k triangles (``envcap.capture_synthetic.street_canyon``).  Measured in
-the same run, interleaved round by round so that load from other processes hits both alike:
+the same run, interleaved probe by probe so that load from other processes hits both alike:
 
-* ``culled``: :class:`~envcap.capture.CubeCapture` as shipped (chunks culled per face, nearest
+* ``culled``: :class:`~envcap.capture.CubeCapture` as shipped (chunks culled per face, near
   first), for every effect subset;
 * ``unculled``: the simplest correct method, ``cull_chunks=False`` (every triangle drawn for
   every face, one draw call per face), all effects; its output must be bit-identical;
 * ``naive``: a fresh capture per probe (mesh upload, shader compile, shadow map, sky SH), all
   effects, for the cost of the per-set setup.
 
-Reports probes/s, ratios, per-probe pass costs (``cull``: CPU choosing chunks, ``render``: the
-six faces drawn and finished, ``readback``: read into (6, N, N, 4)), triangles and draw calls per
-probe, and the load average seen.  Writes ``capture.json`` and ``capture.png`` to ``--out``.
+Every timed capture set is preceded by an untimed one of the same size (shader JIT, and the
+first touch of fresh memory, slow on this VM).  Reports probes/s (1 / median wall time per
+probe), the end-to-end ``capture_many`` rate, ratios, per-probe pass costs (``cull``: CPU
+choosing chunks, ``render``: the six faces drawn and finished, ``readback``: read into
+(6, N, N, 4)), triangles and draw calls per probe, and the load average seen.  Writes
+``capture.json`` and ``capture.png`` to ``--out``.
 """
 
 from __future__ import annotations
@@ -102,47 +105,53 @@ def run(args: argparse.Namespace) -> int:
     subsets = {"geometry only": set(), "emissive_windows": {"emissive_windows"}, "sky_light": {"sky_light"},
                "sun_light": {"sun_light"}, "sun_light+sun_shadows": {"sun_light", "sun_shadows"}, "all": all_eff}
 
-    # Culled vs unculled, all effects, interleaved rounds; outputs compared probe by probe.
+    # Culled vs unculled, all effects, interleaved probe by probe (both see the same load); every
+    # output compared bit by bit.  Per-probe wall = cull + render + readback + unpacking.
     fast = CubeCapture(mesh, args.size, sky=sky, effects=all_eff, ctx=ctx)
     full = CubeCapture(mesh, args.size, sky=sky, effects=all_eff, ctx=ctx, cull_chunks=False)
-    fast.capture(pos[0]), full.capture(pos[0])  # warm-up (shader JIT)
-    acc = {k: {"wall": 0.0, "render": 0.0, "readback": 0.0} for k in ("culled", "unculled")}
+    # Warm-up: shader JIT, and first touch of output memory (on this VM the first use of fresh
+    # guest memory costs up to ~13 ms per 6 x 256^2 probe; reused memory 0.6 ms).
+    fast.capture_many(pos, progress=False), full.capture_many(pos, progress=False)
+    rec: dict[str, dict[str, list[float]]] = {
+        k: {m: [] for m in ("wall", "render", "readback", "cull", "triangles", "draw_calls")}
+        for k in ("culled", "unculled")}
     identical = True
     for _ in range(args.rounds):
-        for key, cap in (("culled", fast), ("unculled", full)):
-            dt, per, s = _timed(cap, pos)
-            acc[key]["wall"] += dt
-            acc[key]["render"] += per["render"] / args.rounds
-            acc[key]["readback"] += per["readback"] / args.rounds
-            if key == "culled":
-                got = s
-        identical &= bool(np.array_equal(got.rgba, s.rgba) and np.array_equal(got.distance, s.distance)
-                          and np.array_equal(got.backfacing, s.backfacing))
-    stats = {k: [] for k in ("cull_s", "triangles", "draw_calls")}
-    stats_full = {k: [] for k in ("triangles", "draw_calls")}
-    for p in pos:
-        a, b = fast.capture(p).draw_stats, full.capture(p).draw_stats
-        for k in stats:
-            stats[k].append(a[k])
-        for k in stats_full:
-            stats_full[k].append(b[k])
-    n_total = args.rounds * args.probes
-    compare = {
-        key: {"probes_per_s": n_total / acc[key]["wall"], "wall_per_probe_s": acc[key]["wall"] / n_total,
-              "per_probe_s": {"render": acc[key]["render"], "readback": acc[key]["readback"]}}
-        for key in acc
-    }
-    compare["culled"]["per_probe_s"]["cull"] = float(np.mean(stats["cull_s"]))
-    compare["culled"]["triangles_per_probe"] = float(np.mean(stats["triangles"]))
-    compare["culled"]["draw_calls_per_probe"] = float(np.mean(stats["draw_calls"]))
-    compare["unculled"]["triangles_per_probe"] = float(np.mean(stats_full["triangles"]))
-    compare["unculled"]["draw_calls_per_probe"] = float(np.mean(stats_full["draw_calls"]))
+        for p in pos:
+            got = {}
+            for key, cap in (("culled", fast), ("unculled", full)):
+                t0 = time.perf_counter()
+                c = cap.capture(p)
+                r = rec[key]
+                r["wall"].append(time.perf_counter() - t0)
+                r["render"].append(c.pass_times_s["render"])
+                r["readback"].append(c.pass_times_s["readback"])
+                r["cull"].append(c.draw_stats["cull_s"])
+                r["triangles"].append(c.draw_stats["triangles"])
+                r["draw_calls"].append(c.draw_stats["draw_calls"])
+                got[key] = c
+            a, b = got["culled"], got["unculled"]
+            identical &= bool(np.array_equal(a.rgba, b.rgba) and np.array_equal(a.distance, b.distance)
+                              and np.array_equal(a.backfacing, b.backfacing))
+    compare = {}
+    for key, r in rec.items():
+        med = {m: float(np.median(v)) for m, v in r.items()}
+        compare[key] = {"probes_per_s": 1.0 / med["wall"], "probes_per_s_mean": 1.0 / float(np.mean(r["wall"])),
+                        "wall_per_probe_s_median": med["wall"],
+                        "wall_per_probe_s_p10_p90": [float(np.quantile(r["wall"], q)) for q in (0.1, 0.9)],
+                        "per_probe_s": {"cull": med["cull"], "render": med["render"], "readback": med["readback"]},
+                        "triangles_per_probe": float(np.mean(r["triangles"])),
+                        "draw_calls_per_probe": float(np.mean(r["draw_calls"]))}
+    # End to end, as envcap capture calls it: one capture_many (culled), after the warm-up above.
+    dt, _, _ = _timed(fast, pos)
+    compare["culled"]["capture_many_probes_per_s"] = args.probes / dt
     ratio = compare["culled"]["probes_per_s"] / compare["unculled"]["probes_per_s"]
     per_set = dict(fast.pass_times_s)
     fast.release()
     full.release()
-    print(f"all effects: culled {compare['culled']['probes_per_s']:.1f} probes/s, unculled "
-          f"{compare['unculled']['probes_per_s']:.1f} probes/s, ratio {ratio:.2f}x, identical={identical}")
+    print(f"all effects (median per probe): culled {compare['culled']['probes_per_s']:.1f} probes/s, unculled "
+          f"{compare['unculled']['probes_per_s']:.1f} probes/s, ratio {ratio:.2f}x, identical={identical}; "
+          f"capture_many culled {compare['culled']['capture_many_probes_per_s']:.1f} probes/s")
 
     # Per effect subset (culled path only).
     results: dict[str, dict] = {}
@@ -150,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         cap = CubeCapture(mesh, args.size, sky=sky, effects=eff, ctx=ctx)
         setup = time.perf_counter() - t0
-        cap.capture(pos[0])  # warm-up
+        cap.capture_many(pos, progress=False)  # warm-up (JIT, output memory)
         dt, per, _ = _timed(cap, pos)
         results[label] = {"probes_per_s": args.probes / dt, "setup_s": setup,
                           "per_set_passes_s": dict(cap.pass_times_s), "per_probe_s": per}
