@@ -197,11 +197,12 @@ def _plot(path: Path, out: dict, tris: int, size: int) -> None:
     import matplotlib.pyplot as plt
 
     cmp_ = out["all_effects"]
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 3.6), gridspec_kw={"width_ratios": [3, 2]})
-    labels = [f"{k} (culled)" for k in out["subsets"]] + ["all, unculled (draw everything)", "all, naive (re-create)"]
-    vals = [v["probes_per_s"] for v in out["subsets"].values()] + [cmp_["unculled"]["probes_per_s"],
-                                                                  out["naive_all_probes_per_s"]]
-    ax.barh(labels, vals, color=["C0"] * len(out["subsets"]) + ["C1", "C3"])
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.0), gridspec_kw={"width_ratios": [3, 2]})
+    labels = [f"{k} (culled, capture_many)" for k in out["subsets"]] + [
+        "all, culled (median, alternating)", "all, unculled (median, alternating)", "all, naive (re-create)"]
+    vals = [v["probes_per_s"] for v in out["subsets"].values()] + [
+        cmp_["culled"]["probes_per_s"], cmp_["unculled"]["probes_per_s"], out["naive_all_probes_per_s"]]
+    ax.barh(labels, vals, color=["C0"] * len(out["subsets"]) + ["C2", "C1", "C3"])
     ax.axvline(20, color="k", ls="--", lw=0.8, label="goal 20 probes/s")
     ax.set_xlabel(f"probes/s at 6x{size}^2, {tris} triangles")
     ax.legend(loc="lower right", fontsize=8)
