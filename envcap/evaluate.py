@@ -247,10 +247,10 @@ def positions_from_array(manifest: Mapping[str, Any], positions: ArrayLike) -> l
 def truth_grid_size(w: float, n: int, min_grid: int = 8) -> int:
     """Face size of the grid a lobe of power ``w`` is compared on, for an ``n``-texel capture.
 
-    ``n >> k`` for the largest ``k >= 1`` with ``n >> k >= max(0.9 sqrt(w + 2), min_grid)``
-    (about two face-center texels per lobe RMS angle ``1/sqrt(w + 2)``, as in the lobe ladder, so
-    a ladder power ``w_k`` gets its own level's grid ``N_k``), at most ``n // 2``; ``n`` for the
-    mirror.
+    ``n >> k`` for the largest ``k >= 1`` with ``n >> k >= max(0.9 sqrt(w + 2), min_grid)``: the
+    lobe ladder's density (a face-center texel, ``2/M`` rad, spans about two lobe RMS angles
+    ``1/sqrt(w + 2)``), so a ladder power ``w_k`` gets its own level's grid ``N_k``; at most
+    ``n // 2``; ``n`` for the mirror.
     """
     if math.isinf(w):
         return n
