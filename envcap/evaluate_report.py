@@ -95,8 +95,9 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
                   f"{res.meta['probe_resolution']}² every {res.meta['probe_spacing']} m ({res.meta['probe_count']} probes). "
                   f"Best method: **{best}**.", ""]
         rat = ratios(res)
-        for sun in res.meta.get("sun_variants", [True]):
-            label = "sky as baked (sun in the sky)" if sun else "sun taken out of the sky (analytic sun light)"
+        variants = sorted(res.meta.get("sun_variants", [True]), key=lambda v: v != res.meta.get("primary_sun", True))
+        for sun in variants:   # the primary variant first
+            label = "sky as baked (sun in the sky)" if sun else "sun taken out of the sky (analytic sun light; primary)"
             rows = [[m] + [_fmt(res.error(m, lp, sun=sun)) for lp in lps] for m in res.meta["methods"]]
             parts += [f"### Mean relative RMSE by method and lobe power: {label}", "",
                       _md_table(["method"] + [_lp_label(lp) for lp in lps], rows), ""]
