@@ -418,3 +418,22 @@ def test_window_1p5cm_in_front_of_its_wall_wins_at_300m(gl_ctx):
     assert inside.sum() > 500 and np.all(seen[inside])
     np.testing.assert_array_equal(got.rgba[0][inside][:, :3], np.tile([1.0, 0.0, 0.0], (inside.sum(), 1)))
     np.testing.assert_allclose(got.distance[0][inside], d / dirs[inside][:, 0], rtol=3e-5)
+
+
+def test_reversed_face_clip_matrix_depth_and_xy():
+    """Hand-derived: z/w = 1 at ma = near, 0 at ma = far (near / ma when far is infinite);
+    x, y, w rows equal face_clip_matrix's."""
+    from envcap.capture import face_clip_matrix_reversed
+
+    near, far = 0.05, 400.0
+    for f in range(6):
+        ma_dir = np.linalg.inv(face_clip_matrix(f)[[0, 1, 3], :3])[:, 2]  # direction with sc = tc = 0
+        for ma in (near, 1.0, 100.0, far):
+            r = np.append(ma_dir * ma, 1.0)
+            fin = face_clip_matrix_reversed(f, near, far) @ r
+            inf = face_clip_matrix_reversed(f, near) @ r
+            np.testing.assert_allclose(fin[[0, 1, 3]], (face_clip_matrix(f, near, far) @ r)[[0, 1, 3]], atol=1e-12)
+            np.testing.assert_allclose(fin[2] / fin[3], (far - ma) / (far - near) * near / ma, rtol=1e-12, atol=1e-15)
+            np.testing.assert_allclose(inf[2] / inf[3], near / ma, rtol=1e-12)
+    with pytest.raises(ValueError, match="near"):
+        face_clip_matrix_reversed(0, 0.0)
