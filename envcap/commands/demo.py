@@ -34,7 +34,6 @@ def run(args: argparse.Namespace) -> int:
         from envcap.evaluate import quick_evaluation
         from envcap.scene import load_scene
 
-        report = quick_evaluation(load_scene(args.scene), probes_dir, out / "evaluation")
-        print(f"evaluation report: {report}")
+        quick_evaluation(load_scene(args.scene), probes_dir, out / "evaluation")
     print(f"demo finished in {time.perf_counter() - t0:.1f} s; outputs in {out.resolve()}")
     return 0
