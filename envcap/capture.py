@@ -438,18 +438,19 @@ def _box_far_distance(lo: NDArray[np.float64], hi: NDArray[np.float64], p: NDArr
     return np.sqrt(np.einsum("ci,ci->c", d, d))
 
 
-def _runs(ids: NDArray[np.int64], first: NDArray[np.int64], count: NDArray[np.int64]) -> list[tuple[int, int]]:
-    """Merge chunks drawn in the order ``ids`` into (first triangle, triangle count) draw ranges:
+def _runs(ids: NDArray[np.int64], first: NDArray[np.int64],
+          count: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Merge chunks drawn in the order ``ids`` into draw ranges (first triangles, triangle counts):
     a chunk that directly follows the previous one in the buffer extends its range."""
     if ids.size == 0:
-        return []
+        z = np.zeros(0, np.int64)
+        return z, z
     brk = np.ones(ids.size, bool)
     brk[1:] = ids[1:] != ids[:-1] + 1
     starts = np.flatnonzero(brk)
     ends = np.append(starts[1:], ids.size) - 1
     f0 = first[ids[starts]]
-    n = first[ids[ends]] + count[ids[ends]] - f0
-    return list(zip(f0.tolist(), n.tolist()))
+    return f0, first[ids[ends]] + count[ids[ends]] - f0
 
 
 class CubeCapture:
@@ -544,7 +545,7 @@ class CubeCapture:
         self._prog = ctx.program(vertex_shader=shader_source("capture_vert.glsl"),
                                  fragment_shader=shader_source("capture_frag.glsl", defines or None))
         self._vao = None
-        self._vbo = self._ibo = None
+        self._vbo = self._ibo = self._indirect = None
         self.chunks = None
         if has_tris:
             data = np.concatenate([mesh.positions, mesh.normals, mesh.albedo, mesh.emission], axis=1)
@@ -554,6 +555,8 @@ class CubeCapture:
             self.chunks: TriangleChunks | None = chunk_triangles(mesh.positions, mesh.indices, chunk_size)
             idx = mesh.indices[self.chunks.order]
             self._ibo = ctx.buffer(np.ascontiguousarray(idx, dtype=np.uint32).tobytes())
+            # Indirect draw commands, 20 bytes each, at most one per chunk and face.
+            self._indirect = ctx.buffer(reserve=20 * 6 * max(int(self.chunks.first.size), 1))
             # Attributes that a shader variant does not use are optimized away: skip their bytes.
             names = [a for a in ("in_position", "in_normal", "in_albedo", "in_emission")
                      if self._prog.get(a, None) is not None]
@@ -678,15 +681,14 @@ class CubeCapture:
                 if self._shadow_tex is not None:
                     self._shadow_tex.use(0)
                 for f in range(6):
-                    if draws is not None and not draws[f]:
+                    if draws is not None and draws[f][1] == 0:
                         continue
                     self._fbo.viewport = ((f % 3) * n, (f // 3) * n, n, n)
                     self._prog["face_clip"].write(self._face_mats[f])
                     if draws is None:
                         self._vao.render()
-                    else:
-                        for first, count in draws[f]:
-                            self._vao.render(vertices=3 * count, first=3 * first)
+                    else:  # one multi-draw per face (glMultiDrawElementsIndirect)
+                        self._vao.render_indirect(self._indirect, count=draws[f][1], first=draws[f][0])
             finally:
                 gl.glClipControl(saved[0], saved[1])  # leave the context as found
                 gl.glDepthFunc(saved[2])
@@ -704,28 +706,35 @@ class CubeCapture:
         np.not_equal(distance, 0.0, out=rgba[..., 3], casting="unsafe")
         return {"render": t1 - t0, "readback": t2 - t1}, stats
 
-    def _face_draws(self, p: NDArray[np.float64], stats: dict[str, float]) -> list[list[tuple[int, int]]] | None:
-        """Per face, the (first triangle, count) ranges to draw; ``None``: draw everything."""
+    def _face_draws(self, p: NDArray[np.float64], stats: dict[str, float]) -> list[tuple[int, int]] | None:
+        """Cull and order chunks for the probe at ``p``; write the draw ranges as indirect draw
+        commands (count, 1, first index, 0, 0) into ``self._indirect``.  Returns per face
+        (first command, number of commands); ``None``: draw everything."""
         ch = self.chunks
         if ch is None:
-            return [[] for _ in range(6)]
-        total = int(ch.count.sum())
+            return [(0, 0)] * 6
         if not self.cull_chunks:
-            stats["triangles"], stats["draw_calls"] = 6.0 * total, 6.0
+            stats["triangles"], stats["draw_calls"] = 6.0 * int(ch.count.sum()), 6.0
             return None
         t0 = time.perf_counter()
         vis = chunk_face_visibility(ch.lo, ch.hi, p, self.near, self.far)  # (6, C)
         dist = _box_far_distance(ch.lo, ch.hi, p)
-        draws = []
+        cmds, faces, k = [], [], 0
         for f in range(6):
             ids = np.flatnonzero(vis[f])
             ids = ids[np.argsort(dist[ids], kind="stable")]  # near first: early depth rejects the rest
-            runs = _runs(ids, ch.first, ch.count)
-            draws.append(runs)
-            stats["triangles"] += float(ch.count[ids].sum())
-            stats["draw_calls"] += float(len(runs))
+            f0, cnt = _runs(ids, ch.first, ch.count)
+            c = np.zeros((f0.size, 5), np.uint32)
+            c[:, 0], c[:, 1], c[:, 2] = 3 * cnt, 1, 3 * f0
+            cmds.append(c)
+            faces.append((k, int(f0.size)))
+            k += int(f0.size)
+            stats["triangles"] += float(cnt.sum())
+        stats["draw_calls"] = float(k)
+        if k:
+            self._indirect.write(np.concatenate(cmds).tobytes())
         stats["cull_s"] = time.perf_counter() - t0
-        return draws
+        return faces
 
     def capture_many(self, positions: NDArray[np.floating], progress: bool = True) -> CaptureSet:
         """Capture probes at ``positions`` (P, 3) meters, with a tqdm bar when on a TTY."""
@@ -760,7 +769,7 @@ class CubeCapture:
 
     def release(self) -> None:
         """Free the GL objects (and the context if this capture created it)."""
-        for o in [self._vao, self._vbo, self._ibo, self._fbo, self._color, self._depth, self._prog, *self._shadow_objs]:
+        for o in [self._vao, self._vbo, self._ibo, self._indirect, self._fbo, self._color, self._depth, self._prog, *self._shadow_objs]:
             if o is not None:
                 o.release()
         if self._depth32:
