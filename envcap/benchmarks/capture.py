@@ -214,7 +214,7 @@ def _plot(path: Path, out: dict, tris: int, size: int) -> None:
         bx.bar(keys, v, bottom=bottom, color=col, label=part)
         bottom += v
     for i, k in enumerate(keys):
-        bx.text(i, bottom[i], f"{cmp_[k]['triangles_per_probe'] / 1e3:.0f}k tris\n{cmp_[k]['draw_calls_per_probe']:.0f} draws",
+        bx.text(i, bottom[i], f"{cmp_[k]['triangles_per_probe'] / 1e3:.0f}k tris\n{cmp_[k]['draw_calls_per_probe']:.0f} index ranges",
                 ha="center", va="bottom", fontsize=8)
     bx.set_ylabel("ms per probe (all effects)")
     bx.set_ylim(0, bottom.max() * 1.3)
