@@ -39,6 +39,7 @@ def bake_probe_set(
     height: float = 2.0,
     quality: str = "default",
     filter_levels: bool = True,
+    sun_in_sky: bool = False,
     ctx: Any = None,
     progress: bool | None = None,
     verbose: bool = False,
@@ -48,6 +49,11 @@ def bake_probe_set(
     ``resolution``: face size N of each probe cube (texels); ``spacing``, ``height``: probe
     spacing along the street and height above its ground (m); ``quality``: prefilter quality
     (see :data:`envcap.prefilter.QUALITY`); ``filter_levels=False`` stores level 0 only.
+    ``sun_in_sky``: splat the sun's disk into the sky map (float32, energy-conserving).  By
+    default the sky map holds the sky dome only and the sun is an analytic light in the manifest
+    (``sky.sun``: direction, disk radiance, illuminance): an engine lights with it (with its own
+    shadows) and uses the maps for the rest, so the sun is neither counted twice nor leaked
+    through the filtered alpha of facade edges at wide lobes (see docs/evaluation.md).
     ``ctx``: a moderngl context (one is made when ``None``).  Returns the probe set in memory;
     the layers of ``levels`` are the probes of all streets, in street order.
 
@@ -63,7 +69,7 @@ def bake_probe_set(
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     sky = sky_from_spec(scene.sky, scene.base_dir)
-    sky_rgb = sky.cube(resolution)
+    sky_rgb = sky.cube(resolution, include_sun=sun_in_sky)
     sky_rgba = np.concatenate([sky_rgb, np.ones(sky_rgb.shape[:-1] + (1,), np.float32)], axis=-1)
     timings["sky_s"] = time.perf_counter() - t0
 
@@ -142,7 +148,8 @@ def bake_probe_set(
         streets=streets,
         effects=sorted(scene.effects),
         passes_run=list(captured.passes_run),
-        sky={"spec": sky.spec(), "format": "RGBA32F", "sun": (sky.sun.spec() if sky.sun is not None else None)},
+        sky={"spec": sky.spec(), "format": "RGBA32F", "sun": (sky.sun.spec() if sky.sun is not None else None),
+             "sun_in_map": bool(sun_in_sky and sky.sun is not None)},
         timings={k: round(v, 4) for k, v in timings.items()},
         scene={"name": scene.name, "description": scene.description, "triangles": scene.mesh.triangle_count},
         lobes=lobes,

@@ -378,7 +378,11 @@ class Predictor:
     def __init__(self, probe_set: Any, sky: Any = None, ctx: Any = None, quality: str = "default") -> None:
         m = probe_set.manifest
         self.levels = [np.asarray(a) for a in probe_set.levels]
-        self.sky_levels = {True: [np.asarray(a) for a in probe_set.sky_levels]}
+        # The baked sky map holds the sun only when the manifest says so (bake default: no sun,
+        # the sun is an analytic light); the other variant is filtered here when a sky is given.
+        baked_sun = bool(m.get("sky", {}).get("sun_in_map", True))
+        self.baked_sun = baked_sun
+        self.sky_levels = {baked_sun: [np.asarray(a) for a in probe_set.sky_levels]}
         pw = (m.get("lobes") or {}).get("powers")
         if not pw:
             pw = [lv.get("lobe_power") for lv in m["levels"]]
@@ -390,10 +394,10 @@ class Predictor:
             from envcap.lobes import LobeLadder
             from envcap.prefilter import prefilter_chain
 
-            ns = self.sky_levels[True][0].shape[1]
+            ns = self.sky_levels[baked_sun][0].shape[1]
             lad = LobeLadder(tuple(max(ns >> k, 1) for k in range(len(self.powers))), tuple(self.powers))
-            self.sky_levels[False] = prefilter_chain(_with_alpha(sky.cube(ns, include_sun=False)), lad, quality=quality,
-                                                     ctx=ctx, progress=False)
+            self.sky_levels[not baked_sun] = prefilter_chain(_with_alpha(sky.cube(ns, include_sun=not baked_sun)), lad,
+                                                             quality=quality, ctx=ctx, progress=False)
         self.distance = None if probe_set.distance is None else np.asarray(probe_set.distance, np.float64)
         self.streets: dict[str, dict[str, Any]] = {}
         for st in m["streets"]:
@@ -435,10 +439,14 @@ class Predictor:
         zs = self._z(px.shift_power(w, ratio) if shift else w)
         return cube_sampling.sample_cube_array(self.levels, r, layer, zs)
 
-    def sky_rgb(self, d: ArrayLike, w: ArrayLike, sun: bool = True) -> NDArray[np.float64]:
-        """Sky ``(M, 4)`` at the original directions and the unshifted level ``z(w)``."""
+    def sky_rgb(self, d: ArrayLike, w: ArrayLike, sun: bool | None = None) -> NDArray[np.float64]:
+        """Sky ``(M, 4)`` at the original directions and the unshifted level ``z(w)``.
+
+        ``sun``: with the sun splatted into the sky map or not; ``None``: the sky as baked."""
         from envcap import cube_sampling
 
+        if sun is None:
+            sun = self.baked_sun
         if sun not in self.sky_levels:
             raise ValueError("no sun-free sky chain: construct the Predictor with sky= and ctx=")
         d = np.asarray(d, np.float64).reshape(-1, 3)
@@ -472,7 +480,8 @@ class Predictor:
             r, ratio = px.parallax(x, d, p, planes, rs.along)
         return self._fetch(layer, r, ratio, w, shift=method != "planes")
 
-    def predict(self, method: str, street: str, x: ArrayLike, d: ArrayLike, w: ArrayLike, sun: bool = True) -> NDArray[np.float64]:
+    def predict(self, method: str, street: str, x: ArrayLike, d: ArrayLike, w: ArrayLike,
+                sun: bool | None = None) -> NDArray[np.float64]:
         """Radiance ``(M, 3)``: street RGBA of ``method`` composited over the sky."""
         return px.composite(self.street_rgba(method, street, x, d, w), self.sky_rgb(d, w, sun))
 
@@ -608,8 +617,8 @@ def evaluate_scene(
     ``positions``: explicit world positions ``(P, 3)`` (m), else :func:`sample_positions` with
     ``sweep``.  ``methods``: subset of :data:`METHODS`.  ``lobe_powers``: ``inf`` (mirror) and/or
     powers ``w >= 0``.  ``resolution``: face size of the truth captures (default: the probe
-    set's, at most 64).  ``sun_variants``: ``True`` evaluates with the sky as baked (sun splatted
-    into it), ``False`` with the sun taken out of the sky of both truth and prediction (an engine
+    set's, at most 64).  ``sun_variants``: ``True`` evaluates with the sun splatted into the sky map
+    (of truth and prediction), ``False`` with the sun taken out of the sky of both truth and prediction (an engine
     that draws the sun as an analytic light).  ``materials``: Eq. 3 shading metric (empty:
     skipped).  ``keep_worst``: keep truth and predictions of the worst positions (by
     ``planes_mip`` at w = 64 with the sun) for image strips.  ``floor_probes``: also evaluate at

@@ -97,7 +97,7 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
         rat = ratios(res)
         variants = sorted(res.meta.get("sun_variants", [True]), key=lambda v: v != res.meta.get("primary_sun", True))
         for sun in variants:   # the primary variant first
-            label = "sky as baked (sun in the sky)" if sun else "sun taken out of the sky (analytic sun light; primary)"
+            label = "sun splatted into the sky map" if sun else "sun taken out of the sky (analytic sun light; primary)"
             rows = [[m] + [_fmt(res.error(m, lp, sun=sun)) for lp in lps] for m in res.meta["methods"]]
             parts += [f"### Mean relative RMSE by method and lobe power: {label}", "",
                       _md_table(["method"] + [_lp_label(lp) for lp in lps], rows), ""]

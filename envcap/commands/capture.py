@@ -13,6 +13,8 @@ def add_bake_arguments(p: argparse.ArgumentParser, resolution: int) -> None:
     p.add_argument("--spacing", type=float, default=5.0, metavar="M", help="probe spacing along the street in meters (default 5)")
     p.add_argument("--height", type=float, default=2.0, metavar="M", help="probe height above the ground in meters (default 2)")
     p.add_argument("--quality", default="default", choices=["fast", "default", "high"], help="cosine-lobe filter quality")
+    p.add_argument("--sun-in-sky", action="store_true",
+                   help="splat the sun into sky.ktx2 (float32) instead of keeping it only as an analytic light")
     p.add_argument("--no-exr", action="store_true", help="skip the per-probe OpenEXR files")
     p.add_argument("--no-previews", action="store_true", help="skip the PNG previews")
 
@@ -35,7 +37,7 @@ def bake_to_dir(args: argparse.Namespace, scene_name: str, out: Path) -> Path:
     t0 = time.perf_counter()
     scene = load_scene(scene_name)
     ps = bake_probe_set(scene, resolution=args.resolution, spacing=args.spacing, height=args.height,
-                        quality=args.quality, verbose=True)
+                        quality=args.quality, sun_in_sky=args.sun_in_sky, verbose=True)
     ps.manifest["timings"]["total_s"] = round(time.perf_counter() - t0, 3)
     path = write_probe_set(out, ps, exr=not args.no_exr, previews=not args.no_previews)
     n = ps.layer_count
