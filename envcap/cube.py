@@ -89,6 +89,17 @@ def _area_element(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.
     return np.arctan2(x * y, np.sqrt(x * x + y * y + 1.0))
 
 
+def texel_solid_angle(row: NDArray[np.integer], col: NDArray[np.integer], n: int) -> NDArray[np.float64]:
+    """Exact solid angle (sr) of texels ``(row, col)`` of an ``n``-texel face (any face: they are
+    all alike), for selected texels only, so that a large ``n`` costs no ``(6, n, n)`` array."""
+    n = _check_size(n)
+    col = np.asarray(col, dtype=np.float64)
+    row = np.asarray(row, dtype=np.float64)
+    x0, x1 = col / n * 2.0 - 1.0, (col + 1) / n * 2.0 - 1.0
+    y0, y1 = row / n * 2.0 - 1.0, (row + 1) / n * 2.0 - 1.0
+    return _area_element(x1, y1) - _area_element(x0, y1) - _area_element(x1, y0) + _area_element(x0, y0)
+
+
 def texel_solid_angles(n: int) -> NDArray[np.float64]:
     """Exact solid angle of every texel in steradians, shape ``(6, n, n)``; they sum to 4*pi.
 
@@ -96,11 +107,8 @@ def texel_solid_angles(n: int) -> NDArray[np.float64]:
     rectangle on the plane at unit distance (no small-texel approximation).
     """
     n = _check_size(n)
-    edges = np.arange(n + 1, dtype=np.float64) / n * 2.0 - 1.0
-    y0, x0 = np.meshgrid(edges[:-1], edges[:-1], indexing="ij")
-    y1, x1 = np.meshgrid(edges[1:], edges[1:], indexing="ij")
-    w = _area_element(x1, y1) - _area_element(x0, y1) - _area_element(x1, y0) + _area_element(x0, y0)
-    return np.broadcast_to(w, (6, n, n)).copy()
+    row, col = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    return np.broadcast_to(texel_solid_angle(row, col, n), (6, n, n)).copy()
 
 
 def direction_to_face_uv(d: FloatArray) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:

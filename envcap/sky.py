@@ -223,19 +223,8 @@ def splat_sun(sun: Sun, n: int, samples: int = 4096) -> NDArray[np.float64]:
     hit, counts = np.unique(flat, return_counts=True)
     share = counts.astype(np.float64) / pts.shape[0]
     out = np.zeros((6 * n * n, 3), dtype=np.float64)
-    out[hit] = (share / _texel_solid_angle(hit % n, (hit // n) % n, n))[:, None] * sun.illuminance[None, :]
+    out[hit] = (share / _cube.texel_solid_angle((hit // n) % n, hit % n, n))[:, None] * sun.illuminance[None, :]
     return out.reshape(6, n, n, 3)
-
-
-def _texel_solid_angle(col: NDArray[np.int64], row: NDArray[np.int64], n: int) -> NDArray[np.float64]:
-    # Exact solid angle of texels (row, col) of an n-texel face (same closed form as
-    # envcap.cube.texel_solid_angles, evaluated only where needed so large n costs no memory).
-    def area(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.arctan2(x * y, np.sqrt(x * x + y * y + 1.0))
-
-    x0, x1 = col / n * 2.0 - 1.0, (col + 1) / n * 2.0 - 1.0
-    y0, y1 = row / n * 2.0 - 1.0, (row + 1) / n * 2.0 - 1.0
-    return area(x1, y1) - area(x0, y1) - area(x1, y0) + area(x0, y0)
 
 
 # --------------------------------------------------------------------------------------- skies
