@@ -272,7 +272,8 @@ class _DepthGL:
 
     def __init__(self) -> None:
         import ctypes
-        import os
+
+        from envcap.gl import load_gl_functions
 
         c = ctypes
         sig: dict[str, tuple[Any, tuple[Any, ...]]] = {
@@ -287,14 +288,8 @@ class _DepthGL:
             "glFramebufferRenderbuffer": (None, (c.c_uint, c.c_uint, c.c_uint, c.c_uint)),
             "glCheckFramebufferStatus": (c.c_uint, (c.c_uint,)),
         }
-        egl = c.CDLL(os.environ.get("ENVCAP_LIBEGL", "libEGL.so.1"))
-        egl.eglGetProcAddress.restype = c.c_void_p
-        egl.eglGetProcAddress.argtypes = [c.c_char_p]
-        for name, (res, args) in sig.items():
-            ptr = egl.eglGetProcAddress(name.encode())
-            if not ptr:
-                raise RuntimeError(f"OpenGL entry point {name} not available through EGL (needs OpenGL 4.5)")
-            setattr(self, name, c.CFUNCTYPE(res, *args)(ptr))
+        for name, fn in load_gl_functions(sig).items():
+            setattr(self, name, fn)
         self._c = c
 
     def get(self, pname: int) -> int:

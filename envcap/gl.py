@@ -64,6 +64,22 @@ def create_context(require: int = 430) -> Any:
     return ctx
 
 
+def load_gl_functions(signatures: dict[str, tuple[Any, tuple[Any, ...]]]) -> dict[str, Any]:
+    """OpenGL entry points ``{name: (restype, argtypes)}`` as ctypes callables, via
+    ``eglGetProcAddress`` (they act on whichever context is current).  Raises ``RuntimeError``
+    naming a missing entry point."""
+    egl = ctypes.CDLL(os.environ.get("ENVCAP_LIBEGL", "libEGL.so.1"))
+    egl.eglGetProcAddress.restype = ctypes.c_void_p
+    egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
+    out = {}
+    for name, (res, args) in signatures.items():
+        ptr = egl.eglGetProcAddress(name.encode())
+        if not ptr:
+            raise RuntimeError(f"OpenGL entry point {name} not available through EGL")
+        out[name] = ctypes.CFUNCTYPE(res, *args)(ptr)
+    return out
+
+
 class RawGL:
     """A few OpenGL entry points that moderngl does not expose, loaded through EGL.
 
@@ -96,14 +112,8 @@ class RawGL:
     }
 
     def __init__(self) -> None:
-        egl = ctypes.CDLL(os.environ.get("ENVCAP_LIBEGL", "libEGL.so.1"))
-        egl.eglGetProcAddress.restype = ctypes.c_void_p
-        egl.eglGetProcAddress.argtypes = [ctypes.c_char_p]
-        for name, (res, args) in self._signatures.items():
-            ptr = egl.eglGetProcAddress(name.encode())
-            if not ptr:
-                raise RuntimeError(f"OpenGL entry point {name} not available through EGL")
-            setattr(self, name, ctypes.CFUNCTYPE(res, *args)(ptr))
+        for name, fn in load_gl_functions(self._signatures).items():
+            setattr(self, name, fn)
 
     def clear_errors(self) -> None:
         """Drop errors that earlier calls left queued (moderngl leaves some, e.g. when it makes a
