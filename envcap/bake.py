@@ -66,6 +66,7 @@ def bake_probe_set(
 
     if not scene.streets:
         raise ValueError(f"scene '{scene.name}' has no streets: nothing to place probes along")
+    placements = [place_probes(st, spacing=spacing, height=height) for st in scene.streets]  # validates first
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     sky = sky_from_spec(scene.sky, scene.base_dir)
@@ -73,7 +74,6 @@ def bake_probe_set(
     sky_rgba = np.concatenate([sky_rgb, np.ones(sky_rgb.shape[:-1] + (1,), np.float32)], axis=-1)
     timings["sky_s"] = time.perf_counter() - t0
 
-    placements = [place_probes(st, spacing=spacing, height=height) for st in scene.streets]
     positions = np.array([p.position for street in placements for p in street], dtype=np.float64)
     _log(f"{scene.name}: {len(positions)} probes on {len(scene.streets)} street(s), {resolution}^2 per face", verbose)
 
