@@ -32,25 +32,32 @@ def city_scenes_dir() -> Path:
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
 
 
-def shader_source(name: str, defines: dict[str, object] | None = None) -> str:
-    """Read GLSL file ``name`` from ``shaders/``, resolving ``#include "file"`` lines.
+def expand_includes(source: str, _seen: set[str] | None = None) -> str:
+    """Resolve ``#include "file"`` lines of GLSL ``source`` against ``shaders/``, recursively.
 
-    Each file is included at most once.  ``defines`` become ``#define KEY VALUE`` lines inserted
-    right after the ``#version`` line (the file must start with one if defines are given).
-    """
-    seen: set[str] = set()
+    Each file is included at most once (later includes of it expand to nothing)."""
+    seen = set() if _seen is None else _seen
 
-    def load(fname: str) -> str:
+    def load(match: re.Match[str]) -> str:
+        fname = match.group(1)
         if fname in seen:
             return ""
         seen.add(fname)
         path = shaders_dir() / fname
         if not path.is_file():
             raise FileNotFoundError(f"shader '{fname}' not found in {shaders_dir()}")
-        text = path.read_text()
-        return _INCLUDE.sub(lambda m: load(m.group(1)), text)
+        return expand_includes(path.read_text(), seen)
 
-    src = load(name)
+    return _INCLUDE.sub(load, source)
+
+
+def shader_source(name: str, defines: dict[str, object] | None = None) -> str:
+    """Read GLSL file ``name`` from ``shaders/``, resolving ``#include "file"`` lines.
+
+    Each file is included at most once.  ``defines`` become ``#define KEY VALUE`` lines inserted
+    right after the ``#version`` line (the file must start with one if defines are given).
+    """
+    src = expand_includes(f'#include "{name}"\n')
     if defines:
         lines = src.splitlines(keepends=True)
         if not lines or not lines[0].lstrip().startswith("#version"):

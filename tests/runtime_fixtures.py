@@ -7,16 +7,9 @@ import numpy as np
 from envcap import synthetic_street as ss
 from envcap.lobes import lobe_ladder
 from envcap.parallax import RuntimeStreet
+from envcap.resources import shader_source
 
-DECL = """
-uniform float along_s[ENVCAP_MAX_PROBES];
-uniform vec4 pos[ENVCAP_MAX_PROBES];
-uniform vec4 planes[ENVCAP_MAX_PROBES];
-uniform int count;
-uniform int along;
-uniform float xk[ENVCAP_MAX_LEVELS];
-uniform int nlevels;
-"""
+DECL = shader_source("envcap_street_uniforms.glsl")
 ARGS = "along_s, pos, planes, count, along, xk, nlevels"
 
 

@@ -25,7 +25,7 @@ from envcap.gl import CubeArrayTexture, create_context, cube_texture
 from envcap.glsl_harness import set_uniforms
 from envcap.lobes import lobe_ladder
 from envcap.parallax import RuntimeStreet
-from envcap.resources import shader_source
+from envcap.resources import expand_includes
 
 HERE = Path(__file__).resolve().parent
 VERT = """#version 430
@@ -56,7 +56,7 @@ def main() -> int:
     ctx = create_context()
     pt, st = CubeArrayTexture(probes), cube_texture(ctx, sky)
     frag_src = (HERE / "sphere.frag").read_text()
-    frag_src = frag_src.replace('#include "envcap_runtime.glsl"', shader_source("envcap_runtime.glsl"))
+    frag_src = expand_includes(frag_src)
     fbo = ctx.framebuffer([ctx.renderbuffer((args.size, args.size), 4, dtype="f4")])
     fbo.use()
     pt.use(3)

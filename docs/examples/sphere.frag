@@ -7,13 +7,7 @@ out vec4 color;
 layout(binding = 3) uniform samplerCubeArray probes;
 layout(binding = 4) uniform samplerCube sky;
 #include "envcap_runtime.glsl"
-uniform float along_s[ENVCAP_MAX_PROBES];
-uniform vec4 pos[ENVCAP_MAX_PROBES];
-uniform vec4 planes[ENVCAP_MAX_PROBES];
-uniform int count;
-uniform int along;
-uniform float xk[ENVCAP_MAX_LEVELS];
-uniform int nlevels;
+#include "envcap_street_uniforms.glsl"
 uniform vec3 eye;
 uniform vec3 center;     // sphere center (m)
 uniform float radius;    // sphere radius (m)

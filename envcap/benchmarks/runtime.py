@@ -39,13 +39,7 @@ out vec4 color;
 layout(binding = 3) uniform samplerCubeArray probes;
 layout(binding = 4) uniform samplerCube sky;
 #include "envcap_runtime.glsl"
-uniform float along_s[ENVCAP_MAX_PROBES];
-uniform vec4 pos[ENVCAP_MAX_PROBES];
-uniform vec4 planes[ENVCAP_MAX_PROBES];
-uniform int count;
-uniform int along;
-uniform float xk[ENVCAP_MAX_LEVELS];
-uniform int nlevels;
+#include "envcap_street_uniforms.glsl"
 uniform float w;
 void main() {
     // a shading point on a grid along the street and a direction over the whole sphere
@@ -108,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     from envcap.glsl_harness import set_uniforms
     from envcap.lobes import lobe_ladder
     from envcap.parallax import RuntimeStreet
-    from envcap.resources import shader_source
+    from envcap.resources import expand_includes
 
     planes = (-6.0, 6.0, 0.0)
     pos = ss.probe_positions(0.0, 20.0, 3, planes, 0)
@@ -124,8 +118,7 @@ def run(args: argparse.Namespace) -> int:
     fbo = ctx.framebuffer([ctx.renderbuffer((args.size, args.size), 4, dtype="f4")])
     progs = {}
     for name, mode in MODES.items():
-        src = shader_source("envcap_runtime.glsl")
-        frag = FRAG.replace("{mode}", str(mode)).replace('#include "envcap_runtime.glsl"', src)
+        frag = expand_includes(FRAG.replace("{mode}", str(mode)))
         prog = ctx.program(vertex_shader=VERT, fragment_shader=frag)
         set_uniforms(prog, {**street.uniforms(lad.powers), "w": float(args.w)})
         progs[name] = (prog, ctx.vertex_array(prog, []))
