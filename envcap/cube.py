@@ -130,7 +130,6 @@ def direction_to_face_uv(d: FloatArray) -> tuple[NDArray[np.int64], NDArray[np.f
         raise ValueError("zero-length direction has no cube face")
     xmaj = (ax >= ay) & (ax >= az)
     ymaj = ~xmaj & (ay >= az)
-    zmaj = ~xmaj & ~ymaj
     face = np.where(xmaj, np.where(x >= 0, 0, 1), np.where(ymaj, np.where(y >= 0, 2, 3), np.where(z >= 0, 4, 5)))
     sc = np.select([face == 0, face == 1, face == 2, face == 3, face == 4], [-z, z, x, x, x], -x)
     tc = np.select([face == 0, face == 1, face == 2, face == 3, face == 4], [-y, -y, z, -z, -y], -y)

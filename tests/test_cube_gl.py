@@ -5,51 +5,7 @@ import pytest
 
 from envcap import cube
 from envcap.gl import CubeArrayTexture, cube_texture
-
-SAMPLE_CUBE = """
-#version 430
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer Dirs { vec4 dirs[]; };
-layout(std430, binding = 1) writeonly buffer Out { vec4 result[]; };
-uniform samplerCube tex;
-uniform uint count;
-void main() {
-    uint i = gl_GlobalInvocationID.x;
-    if (i >= count) return;
-    result[i] = textureLod(tex, dirs[i].xyz, 0.0);
-}
-"""
-
-SAMPLE_CUBE_ARRAY = """
-#version 430
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer Dirs { vec4 dirs[]; };
-layout(std430, binding = 1) writeonly buffer Out { vec4 result[]; };
-layout(binding = 3) uniform samplerCubeArray tex;
-uniform uint count;
-void main() {
-    uint i = gl_GlobalInvocationID.x;
-    if (i >= count) return;
-    result[i] = textureLod(tex, dirs[i], 0.0);   // w = layer
-}
-"""
-
-
-def _run(ctx, src, dirs4, bind):
-    prog = ctx.compute_shader(src)
-    inp = ctx.buffer(np.ascontiguousarray(dirs4, dtype=np.float32).tobytes())
-    out = ctx.buffer(reserve=dirs4.shape[0] * 16)
-    inp.bind_to_storage_buffer(0)
-    out.bind_to_storage_buffer(1)
-    prog["count"].value = dirs4.shape[0]
-    if "samplerCubeArray" not in src:
-        prog["tex"].value = 3
-    bind(3)
-    prog.run(group_x=(dirs4.shape[0] + 63) // 64)
-    res = np.frombuffer(out.read(), dtype=np.float32).reshape(-1, 4)
-    for o in (prog, inp, out):
-        o.release()
-    return res
+from gl_sampling import SAMPLE_CUBE, SAMPLE_CUBE_ARRAY, sample_with_gl
 
 
 def _index_cube(n, layers=1):
@@ -65,9 +21,9 @@ def test_samplercube_returns_every_texel_at_its_center_direction(gl_ctx, n):
     tex = cube_texture(gl_ctx, [data])
     dirs = cube.texel_directions(n).reshape(-1, 3)
     d4 = np.concatenate([dirs, np.zeros((dirs.shape[0], 1))], axis=1)
-    linear = _run(gl_ctx, SAMPLE_CUBE, d4, tex.use)
+    linear = sample_with_gl(gl_ctx, SAMPLE_CUBE, d4, tex.use)
     tex.filter = (0x2600, 0x2600)  # GL_NEAREST
-    nearest = _run(gl_ctx, SAMPLE_CUBE, d4, tex.use)
+    nearest = sample_with_gl(gl_ctx, SAMPLE_CUBE, d4, tex.use)
     tex.release()
     np.testing.assert_array_equal(nearest, data.reshape(-1, 4))
     # Bilinear at a texel center returns that texel, up to float32 rounding of (s, t).
@@ -82,7 +38,7 @@ def test_cube_map_array_layers_and_faces_match_convention(gl_ctx):
     d4 = np.concatenate(
         [np.concatenate([dirs, np.full((dirs.shape[0], 1), layer)], axis=1) for layer in range(layers)]
     )
-    got = _run(gl_ctx, SAMPLE_CUBE_ARRAY, d4, tex.use)
+    got = sample_with_gl(gl_ctx, SAMPLE_CUBE_ARRAY, d4, tex.use)
     back = tex.read(0)
     tex.release()
     np.testing.assert_array_equal(got, data.reshape(-1, 4))
@@ -101,7 +57,7 @@ def test_direction_to_texel_agrees_with_gl_at_random_directions(gl_ctx):
     _, s, t = cube.direction_to_face_st(dirs)
     inner = (np.abs(s * n - np.round(s * n)) > 1e-3) & (np.abs(t * n - np.round(t * n)) > 1e-3)
     d4 = np.concatenate([dirs, np.zeros((dirs.shape[0], 1))], axis=1)[inner]
-    got = _run(gl_ctx, SAMPLE_CUBE, d4, tex.use)
+    got = sample_with_gl(gl_ctx, SAMPLE_CUBE, d4, tex.use)
     tex.release()
     want = np.stack([face, row, col], axis=-1)[inner]
     np.testing.assert_array_equal(got[:, :3], want)

@@ -8,7 +8,6 @@ import sys
 
 import numpy as np
 import OpenEXR
-import pytest
 
 from envcap import cube as cm
 from envcap.exr_cube import read_exr_cube, write_exr_cube

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import OpenEXR
 import pytest
+from gl_sampling import SAMPLE_CUBE, sample_with_gl
 
 from envcap import cube
 from envcap.latlong import latlong_directions, latlong_solid_angles
@@ -268,21 +269,6 @@ def test_latlong_sky_file_with_nan_rejected_with_clear_message(tmp_path):
         sky_from_spec({"type": "latlong", "file": "missing.exr"}, base_dir=tmp_path)
 
 
-SAMPLE = """
-#version 430
-layout(local_size_x = 64) in;
-layout(std430, binding = 0) readonly buffer Dirs { vec4 dirs[]; };
-layout(std430, binding = 1) writeonly buffer Out { vec4 result[]; };
-uniform samplerCube tex;
-uniform uint count;
-void main() {
-    uint i = gl_GlobalInvocationID.x;
-    if (i >= count) return;
-    result[i] = textureLod(tex, dirs[i].xyz, 0.0);
-}
-"""
-
-
 def test_sky_cube_uploads_as_is_and_gl_returns_the_sun_unclipped(gl_ctx):
     # The GL sampler as reference: the float32 cube (with a sun ~1e9 cd/m^2) uploaded as-is returns, with
     # nearest filtering, the splatted sun texel at the sun direction and the sky at the zenith.
@@ -295,17 +281,8 @@ def test_sky_cube_uploads_as_is_and_gl_returns_the_sun_unclipped(gl_ctx):
     tex = cube_texture(gl_ctx, [rgba])
     tex.filter = (0x2600, 0x2600)  # GL_NEAREST
     dirs = np.array([list(sky.sun.direction) + [0], [0, 1, 0, 0], [0.1, -1, 0.2, 0]], np.float32)
-    prog = gl_ctx.compute_shader(SAMPLE)
-    inp, out = gl_ctx.buffer(dirs.tobytes()), gl_ctx.buffer(reserve=dirs.shape[0] * 16)
-    inp.bind_to_storage_buffer(0)
-    out.bind_to_storage_buffer(1)
-    prog["count"].value = dirs.shape[0]
-    prog["tex"].value = 0
-    tex.use(0)
-    prog.run(group_x=1)
-    got = np.frombuffer(out.read(), np.float32).reshape(-1, 4)[:, :3]
-    for o in (prog, inp, out, tex):
-        o.release()
+    got = sample_with_gl(gl_ctx, SAMPLE_CUBE, dirs, tex.use)[:, :3]
+    tex.release()
     f, r, col = cube.direction_to_texel(sky.sun.direction, n)
     np.testing.assert_array_equal(got[0], c[f, r, col])
     assert got[0, 1] > 1e6 and np.all(np.isfinite(got))
