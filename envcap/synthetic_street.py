@@ -20,7 +20,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from envcap import cube
-from envcap.parallax import FAR, exit_distance
+from envcap.lobes import lobe_ladder
+from envcap.parallax import FAR, RuntimeStreet, exit_distance
 
 SUN_DIR = np.array([0.3, 0.8, 0.52]) / np.linalg.norm([0.3, 0.8, 0.52])
 
@@ -138,3 +139,23 @@ def probe_positions(start: float, end: float, count: int, planes: Sequence[float
     p[:, 2 - along] = 0.5 * (planes[0] + planes[1])
     p[:, 1] = planes[2] + height
     return p
+
+
+def synthetic_probe_set(n: int = 32, count: int = 3, along: int = 0, planes: Sequence[float] = (-6.0, 6.0, 0.0),
+                        start: float = 0.0, end: float = 20.0
+                        ) -> tuple[list[NDArray], list[NDArray], RuntimeStreet, NDArray[np.float64]]:
+    """A small probe set of the analytic street: ``count`` probes from ``start`` to ``end`` (m)
+    along axis ``along`` (0 = x, 2 = z), faces of ``n`` texels, box-filtered chains (the lobe
+    ladder of ``n`` gives the powers; box mips are not cos^w-exact: for examples, benchmarks and
+    GLSL-vs-twin tests, not for accuracy claims).
+
+    Returns ``(probe_levels, sky_levels, street, powers)``: probe level k ``(count, 6, N_k, N_k, 4)``,
+    sky level k ``(6, N_k, N_k, 4)``, the :class:`envcap.parallax.RuntimeStreet` and the powers.
+    """
+    pos = probe_positions(start, end, count, planes, along)
+    pl = np.tile(np.asarray(planes, float), (count, 1))
+    lad = lobe_ladder(n)
+    probes = box_mips(probe_cubes(pos, pl, along, n), lad.levels)
+    sky = box_mips(sky_cube(n), lad.levels)
+    street = RuntimeStreet(along, pos, pl, np.arange(count))
+    return probes, sky, street, np.asarray(lad.powers, dtype=np.float64)

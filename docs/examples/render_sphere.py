@@ -23,8 +23,6 @@ from envcap import synthetic_street as ss  # noqa: E402
 from envcap.atomic import atomic_output_file
 from envcap.gl import CubeArrayTexture, create_context, cube_texture
 from envcap.glsl_harness import set_uniforms
-from envcap.lobes import lobe_ladder
-from envcap.parallax import RuntimeStreet
 from envcap.resources import expand_includes
 
 HERE = Path(__file__).resolve().parent
@@ -46,13 +44,7 @@ def main() -> int:
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--face", type=int, default=128)
     args = ap.parse_args()
-    planes = (-6.0, 6.0, 0.0)
-    pos = ss.probe_positions(0.0, 30.0, 4, planes, 0)
-    pl = np.tile(planes, (4, 1))
-    lad = lobe_ladder(args.face)
-    probes = ss.box_mips(ss.probe_cubes(pos, pl, 0, args.face), lad.levels)
-    sky = ss.box_mips(ss.sky_cube(args.face), lad.levels)
-    street = RuntimeStreet(0, pos, pl, np.arange(4))
+    probes, sky, street, powers = ss.synthetic_probe_set(args.face, count=4, start=0.0, end=30.0)
     ctx = create_context()
     pt, st = CubeArrayTexture(probes), cube_texture(ctx, sky)
     frag_src = (HERE / "sphere.frag").read_text()
@@ -62,7 +54,7 @@ def main() -> int:
     pt.use(3)
     st.use(4)
     # sphere 4.5 m off the probe line, near a facade, between probes: where parallax matters
-    uni = {**street.uniforms(lad.powers), "eye": (10.0, 2.2, -3.0), "center": (15.0, 1.3, 3.8), "radius": 1.3}
+    uni = {**street.uniforms(powers), "eye": (10.0, 2.2, -3.0), "center": (15.0, 1.3, 3.8), "radius": 1.3}
     halves = []
     for par in (0, 1):
         src = frag_src.replace("#version 430", f"#version 430\n#define PARALLAX {par}", 1)

@@ -100,17 +100,9 @@ def run(args: argparse.Namespace) -> int:
     from envcap.atomic import atomic_output_dir
     from envcap.gl import CubeArrayTexture, create_context, cube_texture
     from envcap.glsl_harness import set_uniforms
-    from envcap.lobes import lobe_ladder
-    from envcap.parallax import RuntimeStreet
     from envcap.resources import expand_includes
 
-    planes = (-6.0, 6.0, 0.0)
-    pos = ss.probe_positions(0.0, 20.0, 3, planes, 0)
-    pl = np.tile(planes, (3, 1))
-    lad = lobe_ladder(args.face)
-    probes = ss.box_mips(ss.probe_cubes(pos, pl, 0, args.face), lad.levels)
-    sky = ss.box_mips(ss.sky_cube(args.face), lad.levels)
-    street = RuntimeStreet(0, pos, pl, np.arange(3))
+    probes, sky, street, powers = ss.synthetic_probe_set(args.face, count=3, start=0.0, end=20.0)
 
     ctx = create_context()
     pt = CubeArrayTexture(probes)
@@ -120,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
     for name, mode in MODES.items():
         frag = expand_includes(FRAG.replace("{mode}", str(mode)))
         prog = ctx.program(vertex_shader=VERT, fragment_shader=frag)
-        set_uniforms(prog, {**street.uniforms(lad.powers), "w": float(args.w)})
+        set_uniforms(prog, {**street.uniforms(powers), "w": float(args.w)})
         progs[name] = (prog, ctx.vertex_array(prog, []))
     fbo.use()
     pt.use(3)
@@ -150,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
         "device": ctx.info.get("GL_RENDERER", "?"),
         "pixels": args.size * args.size,
         "face": args.face,
-        "levels": lad.levels,
+        "levels": len(powers),
         "w": args.w,
         "repeats": args.repeats,
         "median_s": med,
