@@ -1,7 +1,7 @@
 #version 430
 // Cube-face capture, vertex stage.  One draw per cube face; face_clip maps (world - probe, 1)
 // to clip space so that x_clip = s-coordinate numerator sc, y_clip = tc, w_clip = major axis
-// (see envcap/capture.py, _face_clip_matrix): NDC (x, y) = (u, v) = (2s - 1, 2t - 1).
+// (see envcap/capture/renderer.py, _face_clip_matrix): NDC (x, y) = (u, v) = (2s - 1, 2t - 1).
 in vec3 in_position;   // world, meters
 in vec3 in_normal;     // unit, world
 in vec3 in_albedo;     // diffuse reflectance [0, 1]

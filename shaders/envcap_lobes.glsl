@@ -11,7 +11,7 @@ const float ENVCAP_PI = 3.14159265358979;
 const float ENVCAP_MAX_LOG2_WEIGHT = 64.0;
 
 // Continuous mip level of cosine power w.  `xk[k]` = log2(1 + powers[k]) for the manifest's
-// strictly decreasing lobe powers (k = 0 .. n-1, filled by envcap.parallax.lobe_table), so
+// strictly decreasing lobe powers (k = 0 .. n-1, filled by envcap.runtime.parallax.lobe_table), so
 // xk is strictly decreasing.  Piecewise linear in x = log2(1 + w); clamped to [0, n - 1]:
 // w >= powers[0] (also +inf) -> 0, w <= powers[n-1] -> n - 1.  w < 0 and NaN are treated as 0.
 float envcap_z_of_w(float w, float xk[ENVCAP_MAX_LEVELS], int n)

@@ -1,6 +1,6 @@
 // envcap runtime sampling library: three-plane parallax, mip shift, sky composite, Eq. 3.
 // Include this file (resources.shader_source resolves the include lines) after "#version 430".  All functions take plain
-// values; fill them from the probe set's manifest (envcap.parallax.RuntimeStreet.uniforms()).
+// values; fill them from the probe set's manifest (envcap.runtime.parallax.RuntimeStreet.uniforms()).
 //
 // Textures: `probes` is a cube-map array (layer = probe) of premultiplied RGBA street radiance
 // (alpha 0 where the sky shows), level k convolved with the normalized cos^powers[k] lobe;

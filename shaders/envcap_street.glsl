@@ -1,6 +1,6 @@
 // envcap runtime, part 1: street geometry (probe selection, three-plane parallax, mip shift).
 // No #version: #include this from a shader that starts with "#version 430" (or later).
-// Conventions (envcap/cube.py): world right-handed, meters, +Y up.  A street runs along world
+// Conventions (envcap/core/cube.py): world right-handed, meters, +Y up.  A street runs along world
 // axis `along` (0 = x, 2 = z); its cross axis is `2 - along`.  A probe's three planes are
 // vec3 planes = (facade_min, facade_max, ground): absolute cross-axis coordinates of the two
 // facades and the ground height, in meters.  Derivations: docs/runtime.md.

@@ -1,5 +1,5 @@
 // The uniforms of one street for the envcap runtime library (include after envcap_runtime.glsl).
-// envcap.parallax.RuntimeStreet.from_manifest(entry).uniforms(powers) gives their values from a
+// envcap.runtime.parallax.RuntimeStreet.from_manifest(entry).uniforms(powers) gives their values from a
 // probe set's manifest:
 //   along_s[i]  along-street coordinate of probe i (m), sorted
 //   pos[i]      probe i: xyz world position (m), w = its layer in the probe cube-map array

@@ -1,6 +1,6 @@
 #version 430
 // Normalized cosine-lobe filter of one cube level for P probes at once
-// (envcap.prefilter.prefilter_many; derivation in docs/prefilter.md).
+// (envcap.prefilter.filters.prefilter_many; derivation in docs/prefilter.md).
 //
 // One invocation per output texel (probe p, face, row, col); its direction d is computed here
 // from the GL texel center.  Over the source texels u of probe p inside the lobe's footprint:
@@ -36,7 +36,7 @@ uniform float theta;      // footprint cap half-angle (radians)
 uniform float cos_theta;
 uniform bool full;        // footprint covers (nearly) everything: no cap bounds
 
-// Face frames of envcap.cube: direction = N + u * A + v * B (u = 2s - 1 along columns, v = 2t - 1 along rows).
+// Face frames of envcap.core.cube: direction = N + u * A + v * B (u = 2s - 1 along columns, v = 2t - 1 along rows).
 const vec3 FN[6] = vec3[6](vec3(1, 0, 0), vec3(-1, 0, 0), vec3(0, 1, 0), vec3(0, -1, 0), vec3(0, 0, 1), vec3(0, 0, -1));
 const vec3 FA[6] = vec3[6](vec3(0, 0, -1), vec3(0, 0, 1), vec3(1, 0, 0), vec3(1, 0, 0), vec3(1, 0, 0), vec3(-1, 0, 0));
 const vec3 FB[6] = vec3[6](vec3(0, -1, 0), vec3(0, -1, 0), vec3(0, 0, 1), vec3(0, 0, -1), vec3(0, -1, 0), vec3(0, -1, 0));

@@ -1,4 +1,4 @@
-// Sun visibility from an orthographic light-space depth map (envcap/capture.py, ShadowMap).
+// Sun visibility from an orthographic light-space depth map (envcap/capture/renderer.py, ShadowMap).
 // The receiver is pushed off its surface along the normal by shadow_normal_offset (m) and its
 // depth is lowered by a slope-scaled bias; 3x3 PCF of hardware 2x2-filtered comparisons.
 uniform sampler2DShadow shadow_map;

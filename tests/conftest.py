@@ -9,7 +9,7 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 @pytest.fixture(scope="session")
 def gl_ctx():
-    from envcap.gl import create_context
+    from envcap.gpu.gl import create_context
 
     ctx = create_context()
     yield ctx

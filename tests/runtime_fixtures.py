@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from envcap import synthetic_street as ss
-from envcap.resources import shader_source
+from envcap.runtime import synthetic_street as ss
+from envcap.core.resources import shader_source
 
 DECL = shader_source("envcap_street_uniforms.glsl")
 ARGS = "along_s, pos, planes, count, along, xk, nlevels"

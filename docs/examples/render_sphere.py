@@ -1,7 +1,7 @@
 """Render docs/images/runtime_sphere.png: a sphere in a street lit by the runtime library (Eq. 3,
 two Lafortune materials), without parallax (left) and with parallax + mip shift (right).
 
-The probe set is synthetic: the analytic street of envcap.synthetic_street (facades 12 m apart,
+The probe set is synthetic: the analytic street of envcap.runtime.synthetic_street (facades 12 m apart,
 12 m high, window pattern, checker ground), probes every 10 m, box-filtered mips.
 
     python3 docs/examples/render_sphere.py [--out docs/images/runtime_sphere.png] [--size 256]
@@ -20,10 +20,10 @@ import sys
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # run from a checkout without install
 
 from envcap import synthetic_street as ss  # noqa: E402
-from envcap.atomic import atomic_output_file
-from envcap.gl import CubeArrayTexture, create_context, cube_texture
-from envcap.glsl_harness import set_uniforms
-from envcap.resources import expand_includes
+from envcap.core.atomic import atomic_output_file
+from envcap.gpu.gl import CubeArrayTexture, create_context, cube_texture
+from envcap.gpu.glsl_harness import set_uniforms
+from envcap.core.resources import expand_includes
 
 HERE = Path(__file__).resolve().parent
 VERT = """#version 430

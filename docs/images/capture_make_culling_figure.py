@@ -14,11 +14,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Rectangle
 
-from envcap.capture import CubeCapture, chunk_face_visibility
-from envcap.gl import create_context
-from envcap.preview import cross_image
+from envcap.capture.renderer import CubeCapture, chunk_face_visibility
+from envcap.gpu.gl import create_context
+from envcap.formats.png_preview import cross_image
 from envcap.scene import load_scene
-from envcap.sky import sky_from_spec
+from envcap.sky.sky import sky_from_spec
 
 sc = load_scene("canyon")
 sky = sky_from_spec(sc.sky, sc.base_dir)

@@ -1,4 +1,4 @@
-"""Regenerate docs/images/format_*.png: previews of a real probe set (envcap.preview).
+"""Regenerate docs/images/format_*.png: previews of a real probe set (envcap.formats.png_preview).
 
 Bakes two probes of the bundled canyon at 64^2 (sun splatted into the sky, so the sky cross
 shows it) and writes the probe cross, a contact sheet and the sky cross.
@@ -7,8 +7,8 @@ Run: python3 docs/images/make_format_images.py
 
 from pathlib import Path
 
-from envcap.bake import bake_probe_set
-from envcap.preview import contact_sheet_png, cube_cross_png
+from envcap.probeset.bake import bake_probe_set
+from envcap.formats.png_preview import contact_sheet_png, cube_cross_png
 from envcap.scene import load_scene
 
 HERE = Path(__file__).resolve().parent

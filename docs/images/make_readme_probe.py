@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from envcap.capture import CubeCapture
-from envcap.preview import cube_cross_png
+from envcap.capture.renderer import CubeCapture
+from envcap.formats.png_preview import cube_cross_png
 from envcap.scene import load_scene
-from envcap.sky import sky_from_spec
+from envcap.sky.sky import sky_from_spec
 
 OUT = Path(__file__).resolve().parent / "readme_probe_canyon.png"
 

@@ -2,8 +2,8 @@
 import numpy as np, matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-from envcap.sky import PreethamSky, RGB_LUMINANCE
-from envcap.latlong import latlong_directions, direction_to_latlong_xy
+from envcap.sky.sky import PreethamSky, RGB_LUMINANCE
+from envcap.core.latlong import latlong_directions, direction_to_latlong_xy
 h, w = 128, 256
 d = latlong_directions(h, w)
 cases = [(3, 5), (3, 20), (3, 45), (3, 80), (2, 20), (8, 20)]

@@ -1,10 +1,10 @@
 """Probe capture throughput (probes/s at 6 x N^2): per-face chunk culling against drawing everything.
 
 The scene is the bundled ``canyon`` street when ``envcap.scene.load_scene`` exists, else a
-synthetic street of ~50k triangles (``envcap.capture_synthetic.street_canyon``).  Measured in
+synthetic street of ~50k triangles (``envcap.scene.synthetic.street_canyon``).  Measured in
 the same run, interleaved probe by probe so that load from other processes hits both alike:
 
-* ``culled``: :class:`~envcap.capture.CubeCapture` as shipped (chunks culled per face, near
+* ``culled``: :class:`~envcap.capture.renderer.CubeCapture` as shipped (chunks culled per face, near
   first), for every effect subset;
 * ``unculled``: the simplest correct method, ``cull_chunks=False`` (every triangle drawn for
   every face, one draw call per face), all effects; its output must be bit-identical;
@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from envcap.atomic import atomic_output_dir
+from envcap.core.atomic import atomic_output_dir
 
 
 class _Sun:
@@ -42,7 +42,7 @@ class _Sun:
 
 
 class _Sky:
-    """Uniform stand-in used only when envcap.sky is missing."""
+    """Uniform stand-in used only when envcap.sky.sky is missing."""
 
     def __init__(self) -> None:
         self.sun = _Sun()
@@ -66,7 +66,7 @@ def _scene():
         sc = load_scene("canyon")
         return sc.mesh, "canyon", sc
     except Exception:
-        from envcap.capture_synthetic import street_canyon
+        from envcap.scene.synthetic import street_canyon
 
         return street_canyon(), "synthetic street_canyon", None
 
@@ -81,8 +81,8 @@ def _timed(cap, pos: np.ndarray) -> tuple[float, dict[str, float], object]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from envcap.capture import CubeCapture
-    from envcap.gl import create_context
+    from envcap.capture.renderer import CubeCapture
+    from envcap.gpu.gl import create_context
 
     if args.size < 1 or args.probes < 1 or args.baseline_probes < 1 or args.rounds < 1:
         raise ValueError("--size, --probes, --rounds and --baseline-probes must be >= 1")
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     mesh, name, sc = _scene()
     sky = _Sky()
     if sc is not None:
-        from envcap.sky import sky_from_spec
+        from envcap.sky.sky import sky_from_spec
 
         sky = sky_from_spec(sc.sky, sc.base_dir)
     ctx = create_context()

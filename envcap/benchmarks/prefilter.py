@@ -9,10 +9,10 @@ import time
 
 import numpy as np
 
-from envcap import cube as cm
-from envcap.atomic import atomic_output_dir
-from envcap.lobes import lobe_ladder
-from envcap.prefilter import convolve_exact_dirs, omega_box_pyramid, prefilter_chain
+from envcap.core import cube as cm
+from envcap.core.atomic import atomic_output_dir
+from envcap.core.lobes import lobe_ladder
+from envcap.prefilter.filters import convolve_exact_dirs, omega_box_pyramid, prefilter_chain
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
@@ -28,7 +28,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def inputs(n: int, ctx=None) -> dict[str, np.ndarray]:
     """Real inputs: the captured canyon probe over its sky, and the Preetham sky with its sun."""
-    from envcap.prefilter_inputs import real_inputs
+    from envcap.benchmarks.inputs import real_inputs
 
     return real_inputs(n, ctx)
 
@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from envcap.gl import create_context
+    from envcap.gpu.gl import create_context
 
     n = int(args.size)
     if n < 2:

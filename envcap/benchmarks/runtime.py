@@ -61,7 +61,7 @@ MODES = {"plain": 0, "full": 1, "blended": 2}
 
 def fetches_per_lobe() -> dict[str, int]:
     """``textureLod`` calls on each path, counted in the runtime GLSL source."""
-    from envcap.resources import shader_source
+    from envcap.core.resources import shader_source
 
     src = shader_source("envcap_runtime.glsl")
 
@@ -96,11 +96,11 @@ def run(args: argparse.Namespace) -> int:
     import matplotlib.pyplot as plt
     from tqdm import tqdm
 
-    from envcap import synthetic_street as ss
-    from envcap.atomic import atomic_output_dir
-    from envcap.gl import CubeArrayTexture, create_context, cube_texture
-    from envcap.glsl_harness import set_uniforms
-    from envcap.resources import expand_includes
+    from envcap.runtime import synthetic_street as ss
+    from envcap.core.atomic import atomic_output_dir
+    from envcap.gpu.gl import CubeArrayTexture, create_context, cube_texture
+    from envcap.gpu.glsl_harness import set_uniforms
+    from envcap.core.resources import expand_includes
 
     probes, sky, street, powers = ss.synthetic_probe_set(args.face, count=3, start=0.0, end=20.0)
 

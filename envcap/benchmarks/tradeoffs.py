@@ -7,11 +7,11 @@ in one run, every knob is varied with the others at a fixed reference setting:
   bake time per 100 m of street;
 * ``resolution`` (16, 32, 64, 128; spacing 5 m): error vs capture (+ prefilter) time per probe;
 * ``quality`` (fast, default, high; 64^2, spacing 5 m): error vs prefilter time per probe;
-* ``method`` (every :data:`envcap.evaluate.METHODS`; 32^2, spacing 5 m): error vs cost per lookup
+* ``method`` (every :data:`envcap.evaluate.evaluation.METHODS`; 32^2, spacing 5 m): error vs cost per lookup
   as a ratio to a plain lookup (``textureLod`` twin: one cube-array fetch at ``d``, level
   ``z(w)``), timed on the numpy twin in the same run (GLSL ratios: ``envcap bench runtime``).
 
-Error: :func:`envcap.evaluate.evaluate_scene` (fresh captures, 32^2 truth, ``--positions``
+Error: :func:`envcap.evaluate.evaluation.evaluate_scene` (fresh captures, 32^2 truth, ``--positions``
 positions, fixed seed), mean over positions and lobe powers (mirror, 256, 64, 16) of the
 solid-angle weighted relative RMSE of luminance, sun taken out of the sky (an analytic sun light;
 docs/evaluation.md explains why), method ``planes_mip`` unless the knob is the method.  Writes
@@ -68,9 +68,9 @@ def _error(res: Any, method: str) -> dict[str, float]:
 
 def _lookup_costs(ps: Any, scene_street: str, repeats: int) -> dict[str, float]:
     """Seconds per lookup of each method on the numpy twin, and of a plain cube-array fetch."""
-    from envcap import cube, cube_sampling
-    from envcap import parallax as px
-    from envcap.evaluate import METHODS, Predictor
+    from envcap.core import cube, cube_sampling
+    from envcap.runtime import parallax as px
+    from envcap.evaluate.evaluation import METHODS, Predictor
 
     pr = Predictor(ps)
     d = cube.texel_directions(32).reshape(-1, 3)
@@ -105,10 +105,10 @@ def _pareto(points: list[tuple[float, float]]) -> list[bool]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from envcap.atomic import atomic_output_dir
-    from envcap.bake import bake_probe_set
-    from envcap.evaluate import METHODS, Sweep, evaluate_scene, street_segment
-    from envcap.gl import create_context
+    from envcap.core.atomic import atomic_output_dir
+    from envcap.probeset.bake import bake_probe_set
+    from envcap.evaluate.evaluation import METHODS, Sweep, evaluate_scene, street_segment
+    from envcap.gpu.gl import create_context
     from envcap.scene import load_scene
 
     spacings = _floats(args.spacings, "--spacings")
@@ -170,7 +170,7 @@ def run(args: argparse.Namespace) -> int:
     doc = {"benchmark": "tradeoffs", "scenes": names, "street_length_m": args.length, "positions_per_street": n_pos,
            "lobe_powers": ["mirror" if math.isinf(w) else w for w in LOBES], "truth_resolution": 32,
            "error": "mean rel. RMSE of luminance over positions and lobe powers, sun out of the sky",
-           "lookup_timing": "numpy twin (envcap.evaluate.Predictor), 6144 directions, median of repeats; "
+           "lookup_timing": "numpy twin (envcap.evaluate.evaluation.Predictor), 6144 directions, median of repeats; "
                             "plain = one cube-array fetch at d, z(w)",
            "rows": rows, "total_s": total}
     with atomic_output_dir(args.out) as tmp:

@@ -2,11 +2,11 @@
 
 For cosine powers ``w`` log-spaced in [1, 1e4], each method builds its chain the way it is meant
 to be built and is looked up at its own continuous level for ``w`` (GL-style trilinear between
-the two nearest levels, seamless bilinear within a level: :func:`envcap.cube_sampling.sample_cube`);
+the two nearest levels, seamless bilinear within a level: :func:`envcap.core.cube_sampling.sample_cube`);
 the error is against the exact normalized ``cos^w`` convolution
-(:func:`envcap.prefilter.convolve_exact_dirs`) at random uniform directions:
+(:func:`envcap.prefilter.filters.convolve_exact_dirs`) at random uniform directions:
 
-* ``envcap``: :func:`envcap.lobes.lobe_ladder` + :func:`envcap.prefilter.prefilter_chain`,
+* ``envcap``: :func:`envcap.core.lobes.lobe_ladder` + :func:`envcap.prefilter.filters.prefilter_chain`,
   level ``z(w)`` from the ladder table;
 * ``envcap_sigma1``: the same with ``lobe_ladder(N, sigma_texels=1)`` (each level's lobe spans
   one texel RMS instead of half a texel);
@@ -17,7 +17,7 @@ the error is against the exact normalized ``cos^w`` convolution
 
 Error: relative RMSE of luminance over the directions (uniform on the sphere, so solid-angle
 weighted).  Inputs: a captured ``canyon`` probe at (0, 2, 0) composited over its sky, and the
-Preetham sky with its sun (:mod:`envcap.prefilter_inputs`).
+Preetham sky with its sun (:mod:`envcap.benchmarks.inputs`).
 """
 
 from __future__ import annotations
@@ -59,12 +59,12 @@ def run(args: argparse.Namespace) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from envcap.atomic import atomic_output_dir
-    from envcap.cube_sampling import sample_cube
-    from envcap.gl import create_context
-    from envcap.lobes import lobe_ladder
-    from envcap.prefilter import convolve_exact_dirs, omega_box_pyramid, prefilter_chain, prefilter_level
-    from envcap.prefilter_inputs import real_inputs
+    from envcap.core.atomic import atomic_output_dir
+    from envcap.core.cube_sampling import sample_cube
+    from envcap.gpu.gl import create_context
+    from envcap.core.lobes import lobe_ladder
+    from envcap.prefilter.filters import convolve_exact_dirs, omega_box_pyramid, prefilter_chain, prefilter_level
+    from envcap.benchmarks.inputs import real_inputs
 
     n = int(args.size)
     if n < 4:

@@ -29,7 +29,7 @@ class SceneMesh:
     Shapes: ``positions``, ``normals``, ``albedo``, ``emission`` are ``(V, 3)``; ``indices`` is
     ``(T, 3)`` uint32.  Positions in meters in the envcap world frame.  ``albedo`` is the diffuse
     reflectance in [0, 1] (linear RGB); ``emission`` is emitted radiance in the sky's units
-    (linear RGB, cd/m^2-scaled, see :mod:`envcap.sky`).  Normals are unit length and face the
+    (linear RGB, cd/m^2-scaled, see :mod:`envcap.sky.sky`).  Normals are unit length and face the
     side that is lit (flat shading: vertices are not shared between faces of different normal).
     """
 
@@ -132,7 +132,7 @@ class Scene:
     """A city scene: geometry, streets, sky description and the effects it calls for.
 
     ``sky`` is the scene's ``[sky]`` table as a plain dict, interpreted by
-    :func:`envcap.sky.sky_from_spec`; ``base_dir`` resolves relative file names in it.
+    :func:`envcap.sky.sky.sky_from_spec`; ``base_dir`` resolves relative file names in it.
     """
 
     name: str

@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from envcap.atomic import atomic_output_file
-from envcap.resources import shader_source
+from envcap.core.atomic import atomic_output_file
+from envcap.core.resources import shader_source
 from envcap.scene.model import Scene, Street
 
 

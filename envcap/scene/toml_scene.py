@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from envcap.resources import city_scenes_dir
+from envcap.core.resources import city_scenes_dir
 from envcap.scene._spec import Table
 from envcap.scene.geometry import MeshBuilder, subtract_interval
 from envcap.scene.model import EFFECTS, Scene, SceneMesh, Street
@@ -165,9 +165,9 @@ def _parse_effects(v: Any) -> frozenset[str]:
 
 
 def _parse_sky(v: Any, base_dir: Path | None) -> dict[str, Any]:
-    """Check the ``[sky]`` table with :func:`envcap.sky.sky_from_spec` (the one interpreter of
+    """Check the ``[sky]`` table with :func:`envcap.sky.sky.sky_from_spec` (the one interpreter of
     it: unknown keys, types, missing files) and pass it through unchanged as a dict."""
-    from envcap.sky import sky_from_spec
+    from envcap.sky.sky import sky_from_spec
 
     Table(v, "sky")  # a table, not a string or a number
     sky_from_spec(dict(v), base_dir)

@@ -1,0 +1,1 @@
+"""HDR cube capture of a scene with moderngl."""

@@ -1,0 +1,58 @@
+"""``envcap scenes``: list the bundled city scenes (``--details`` builds them; ``--preview`` renders)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("scenes", help="list the bundled city scenes (name, description)")
+    p.add_argument("scene", nargs="*", help="scene names or .toml paths to show (default: all bundled scenes)")
+    p.add_argument("--details", action="store_true",
+                   help="build each scene and print triangles, bounding box, streets and effects")
+    p.add_argument("--preview", metavar="DIR", type=Path,
+                   help="also write DIR/scenes_NAME.png (street-level view above a top view)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from envcap.scene.toml_scene import list_scenes, load_scene, scene_path
+
+    if args.scene:
+        names = [(s, "") for s in args.scene]
+        for s, _ in names:
+            scene_path(s)  # fail early with a clear error on a bad name
+    else:
+        names = list_scenes()
+    if not (args.details or args.preview):
+        for name, desc in names:
+            print(f"{name:<12} {desc}" if desc else name)
+        return 0
+    ctx = None
+    if args.preview:
+        from envcap.gpu.gl import create_context
+
+        ctx = create_context()
+    try:
+        for name, _ in names:
+            scene = load_scene(name)
+            m = scene.mesh
+            lo, hi = (m.positions.min(0), m.positions.max(0)) if m.positions.size else ((0, 0, 0), (0, 0, 0))
+            print(f"{scene.name:<12} {scene.description}")
+            print(f"    triangles {m.triangle_count}, buildings {scene.meta.get('buildings', 0)}, "
+                  f"windows {scene.meta.get('windows', 0)} ({scene.meta.get('lit_windows', 0)} lit)")
+            print(f"    bbox min ({lo[0]:.1f}, {lo[1]:.1f}, {lo[2]:.1f}) max ({hi[0]:.1f}, {hi[1]:.1f}, {hi[2]:.1f}) m")
+            print(f"    effects {', '.join(sorted(scene.effects))}; sky {scene.sky.get('type')}")
+            for st in scene.streets:
+                print(f"    street {st.name}: along {st.axis} [{st.start:g}, {st.end:g}] m, facade planes "
+                      f"{'z' if st.axis == 'x' else 'x'} = {st.facade_min:g} / {st.facade_max:g} m, probe line {st.center_line:g}")
+            if args.preview:
+                from envcap.scene.scene_preview import save_previews
+
+                out = save_previews(ctx, scene, Path(args.preview) / f"scenes_{Path(name).stem}.png")
+                print(f"    preview {out}")
+    finally:
+        if ctx is not None:
+            ctx.release()
+    return 0

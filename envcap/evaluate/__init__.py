@@ -1,0 +1,1 @@
+"""Parallax-error evaluation against fresh captures: sweep, truth, metrics, report."""

@@ -1,0 +1,1 @@
+"""File formats: KTX2, OpenEXR cube maps, PNG previews."""

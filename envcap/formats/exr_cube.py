@@ -1,0 +1,155 @@
+"""OpenEXR cube environment maps <-> envcap cubes; the face orientation changes here only.
+
+An OpenEXR cube map (``envmap`` attribute = cube) is one image ``N`` wide and ``6N`` tall with
+the faces stacked top to bottom in the order +X, -X, +Y, -Y, +Z, -Z, each with OpenEXR's own
+orientation (``ImfEnvmap.cpp``, ``CubeMap::direction`` / ``pixelPosition``).  Derivation in
+``docs/formats.md``: relative to an envcap face ``[row = t, column = s]``, the OpenEXR faces
++X, -X, +Z, -Z are mirrored left-right and +Y, -Y are mirrored top-bottom (no transposition).
+
+OpenEXR places face samples on the face edges (``pos = i / (N - 1) * 2 - 1``) whereas envcap
+and GL place them at texel centers (``u = (2i + 1) / N - 1``).  The conversion keeps texel
+``i`` as sample ``i`` (no resampling), so a tool that follows OpenEXR's convention sees the
+face stretched by ``N / (N - 1)`` about its center: at most half a texel at the edges.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from envcap.core.atomic import atomic_output_file
+
+HALF_MAX = float(np.finfo(np.float16).max)
+
+# Per face (GL order): (flip rows, flip columns) taking an envcap face to OpenEXR's and back.
+EXR_FACE_FLIPS: tuple[tuple[bool, bool], ...] = (
+    (False, True),  # +X
+    (False, True),  # -X
+    (True, False),  # +Y
+    (True, False),  # -Y
+    (False, True),  # +Z
+    (False, True),  # -Z
+)
+
+
+def _flip_face(face: NDArray, f: int) -> NDArray:
+    rows, cols = EXR_FACE_FLIPS[f]
+    if rows:
+        face = face[::-1]
+    if cols:
+        face = face[:, ::-1]
+    return face
+
+
+def cube_to_exr_image(cube: NDArray) -> NDArray:
+    """Envcap cube ``(6, N, N, ...)`` -> OpenEXR cube image ``(6N, N, ...)`` (row 0 = top)."""
+    a = np.asarray(cube)
+    return np.concatenate([_flip_face(a[f], f) for f in range(6)], axis=0)
+
+
+def exr_image_to_cube(img: NDArray) -> NDArray:
+    """OpenEXR cube image ``(6N, N, ...)`` -> envcap cube ``(6, N, N, ...)``."""
+    a = np.asarray(img)
+    n = a.shape[1]
+    return np.stack([_flip_face(a[f * n:(f + 1) * n], f) for f in range(6)])
+
+
+def write_exr_cube(
+    path: str | os.PathLike[str],
+    rgba: NDArray,
+    distance: NDArray | None = None,
+    *,
+    half: bool | None = True,
+) -> Path:
+    """Write an envcap cube as an OpenEXR cube env map, atomically.
+
+    ``rgba`` is ``(6, N, N, 4)`` (linear HDR, envcap orientation); ``distance`` (optional) is
+    ``(6, N, N)`` in meters, stored as channel ``Z`` in float32.  ``half=True`` stores RGBA as
+    half floats and raises ``ValueError`` if any magnitude exceeds 65504; ``half=False`` stores
+    float32; ``half=None`` picks half when every value fits and float32 otherwise.  NaN or Inf
+    in the inputs raise ``ValueError``.
+    """
+    import OpenEXR
+
+    a = np.asarray(rgba)
+    if a.ndim != 4 or a.shape[0] != 6 or a.shape[1] != a.shape[2] or a.shape[3] != 4 or a.shape[1] < 1:
+        raise ValueError(f"EXR cube rgba must have shape (6, N, N, 4), got {a.shape}")
+    if not np.issubdtype(a.dtype, np.floating) and not np.issubdtype(a.dtype, np.integer):
+        raise ValueError(f"EXR cube rgba must be numeric, got dtype {a.dtype}")
+    a = a.astype(np.float64)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"EXR cube rgba: {int(np.count_nonzero(~np.isfinite(a)))} value(s) are NaN or Inf")
+    n = a.shape[1]
+    over = int(np.count_nonzero(np.abs(a) > HALF_MAX))
+    if half is None:
+        half = over == 0
+    if half and over:
+        raise ValueError(
+            f"EXR cube rgba: {over} value(s) exceed the half-float maximum {HALF_MAX:g} "
+            f"(largest {float(np.max(np.abs(a))):g}); write with half=False (float32) or half=None (auto)"
+        )
+    dtype = np.float16 if half else np.float32
+    if not half and np.any(np.abs(a) > np.finfo(np.float32).max):
+        raise ValueError("EXR cube rgba: values exceed the float32 range")
+    img = cube_to_exr_image(a).astype(dtype)
+    channels = {c: np.ascontiguousarray(img[..., i]) for i, c in enumerate("RGBA")}
+    if distance is not None:
+        d = np.asarray(distance, dtype=np.float64)
+        if d.shape != (6, n, n):
+            raise ValueError(f"EXR cube distance must have shape (6, {n}, {n}), got {d.shape}")
+        if not np.all(np.isfinite(d)) or np.any(d < 0) or np.any(d > np.finfo(np.float32).max):
+            raise ValueError("EXR cube distance must be finite and >= 0 (meters)")
+        channels["Z"] = np.ascontiguousarray(cube_to_exr_image(d).astype(np.float32))
+    header = {
+        "compression": OpenEXR.ZIP_COMPRESSION,
+        "type": OpenEXR.scanlineimage,
+        "envmap": OpenEXR.ENVMAP_CUBE,
+    }
+    final = Path(path)
+    with atomic_output_file(final) as tmp:
+        OpenEXR.File(header, channels).write(str(tmp))
+    return final
+
+
+def read_exr_cube(path: str | os.PathLike[str]) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
+    """Read an OpenEXR cube env map into ``(rgba (6, N, N, 4) float32, distance (6, N, N) | None)``.
+
+    Faces come back in envcap/GL orientation.  A file without an ``A`` channel gets alpha 1;
+    ``distance`` is the ``Z`` channel or ``None``.  Raises ``FileNotFoundError`` for a missing
+    file and ``ValueError`` for a file that is not an EXR, not a cube env map, not ``N`` by
+    ``6N``, lacks R, G or B, or holds NaN / Inf.
+    """
+    import OpenEXR
+
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"EXR file not found: {p}")
+    if not OpenEXR.isOpenExrFile(str(p)):
+        raise ValueError(f"{p} is not an OpenEXR file")
+    try:
+        with OpenEXR.File(str(p), separate_channels=True) as f:
+            header = dict(f.header())  # the binding clears its own dict when the file closes
+            chans = {k: np.array(c.pixels) for k, c in f.channels().items()}
+    except Exception as e:  # the binding raises several types for corrupt data
+        raise ValueError(f"{p}: cannot read OpenEXR data ({e})") from e
+    if header.get("envmap") != OpenEXR.ENVMAP_CUBE:
+        raise ValueError(f"{p}: not a cube environment map (envmap attribute is {header.get('envmap')!r})")
+    missing = [c for c in "RGB" if c not in chans]
+    if missing:
+        raise ValueError(f"{p}: missing channel(s) {missing}; have {sorted(chans)}")
+    h, w = chans["R"].shape
+    if w < 1 or h != 6 * w:
+        raise ValueError(f"{p}: a cube env map must be N wide and 6N tall, got {w}x{h}")
+    alpha = chans.get("A", np.ones((h, w)))
+    img = np.stack([chans["R"], chans["G"], chans["B"], alpha], axis=-1).astype(np.float32)
+    if not np.all(np.isfinite(img)):
+        raise ValueError(f"{p}: RGBA holds NaN or Inf")
+    dist = None
+    if "Z" in chans:
+        dist = exr_image_to_cube(chans["Z"].astype(np.float32))
+        if not np.all(np.isfinite(dist)):
+            raise ValueError(f"{p}: Z (distance) holds NaN or Inf")
+    return np.ascontiguousarray(exr_image_to_cube(img)), dist

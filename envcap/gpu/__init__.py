@@ -1,0 +1,1 @@
+"""Headless OpenGL: the EGL context, cube-map-array textures, shader loading, the GLSL test harness."""

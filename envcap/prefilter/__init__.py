@@ -1,0 +1,1 @@
+"""Cosine-lobe mip chains: the exact reference and the fast GPU filter."""

@@ -1,0 +1,485 @@
+"""Cosine-lobe mip chains: an exact float64 reference and a fast GLSL filter.
+
+Level ``k`` of a chain holds the environment averaged under the *normalized* lobe
+``max(0, d.u)^w_k`` (``w_k`` from :class:`envcap.core.lobes.LobeLadder`)::
+
+    m_k(d) = sum_u max(0, d.u)^w_k Omega(u) L(u) / sum_u max(0, d.u)^w_k Omega(u)
+
+a solid-angle weighted average over all source texels ``u`` (texel-center quadrature with the
+exact texel solid angles of :func:`envcap.core.cube.texel_solid_angles`, across face seams).  ``w = 0``
+is the plain hemisphere average.  Cubes are ``(6, N, N, C)`` (any channel count; RGBA of a
+street probe is filtered with the same weights, which keeps premultiplied alpha consistent).
+Inputs with NaN or Inf texels are rejected with ``ValueError``.  Derivation and measured
+accuracy: ``docs/prefilter.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from envcap.core import cube as cubemod
+from envcap.core.lobes import LobeLadder, lobe_ladder
+
+__all__ = [
+    "check_finite_cube",
+    "convolve_exact",
+    "convolve_exact_dirs",
+    "omega_box_pyramid",
+    "footprint_rects",
+    "prefilter_chain",
+    "prefilter_many",
+    "prefilter_level",
+    "QUALITY",
+]
+
+# quality -> (q: source texels per lobe RMS angle, eps: footprint truncation (weights < eps * peak /
+# dynamic range dropped), smallest source face size used).  Measured accuracy: docs/prefilter.md.
+QUALITY: dict[str, tuple[float, float, int]] = {
+    "fast": (4.0, 1e-3, 16),
+    "default": (4.0, 1e-4, 32),
+    "high": (8.0, 1e-9, 64),
+}
+HOT_FACTOR = 1e3
+"""Level-0 texels brighter than this x the median positive luminance are summed exactly (the sun)."""
+MAX_HOT = 256
+"""At most this many hot texels per cube (the brightest); the rest stay in the source levels."""
+_LOOP_BUDGET = 30000  # llvmpipe ends a shader's loops after 65535 iterations in all
+_LUMA = np.array([0.2126, 0.7152, 0.0722])
+
+# Face frames of envcap.core.cube: direction = N + u A + v B.
+_FN = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], np.float64)
+_FA = np.array([[0, 0, -1], [0, 0, 1], [1, 0, 0], [1, 0, 0], [1, 0, 0], [-1, 0, 0]], np.float64)
+_FB = np.array([[0, -1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1], [0, -1, 0], [0, -1, 0]], np.float64)
+
+
+def check_finite_cube(cube: ArrayLike, name: str = "cube") -> NDArray[np.float64]:
+    """Validate a ``(6, N, N, C)`` cube with finite values; return it as float64.
+
+    Raises ``ValueError`` for a bad shape, and for NaN/Inf texels naming their count.
+    """
+    a = cubemod.check_cube(np.asarray(cube), name)
+    if a.ndim != 4:
+        raise ValueError(f"{name} must have shape (6, N, N, C), got {a.shape}")
+    a = np.asarray(a, dtype=np.float64)
+    bad = ~np.isfinite(a)
+    if bad.any():
+        texels = int(np.count_nonzero(bad.any(axis=-1)))
+        raise ValueError(f"{name} has {texels} texel(s) with NaN or Inf values ({int(bad.sum())} values); "
+                         "clean the input (e.g. clamp the sun) before filtering")
+    return a
+
+
+def _check_w(w: float) -> float:
+    w = float(w)
+    if math.isnan(w) or w < 0 or math.isinf(w):
+        raise ValueError(f"cosine power w must be finite and >= 0, got {w!r}")
+    return w
+
+
+def convolve_exact_dirs(cube: ArrayLike, w: float, dirs: ArrayLike, chunk_elems: int = 1 << 22) -> NDArray[np.float64]:
+    """Exact normalized ``cos^w`` average of ``cube`` at unit directions ``dirs`` (``(..., 3)``).
+
+    float64 brute force over every source texel (texel-center quadrature, exact solid angles),
+    processed in chunks of about ``chunk_elems`` weights so memory stays bounded.  Weights are
+    computed as ``exp(w (log cos - log cos_max))`` per output direction, so ``w = 1e7`` gives the
+    nearest texel instead of 0/0.  Returns ``(..., C)`` float64.
+    """
+    a = check_finite_cube(cube)
+    w = _check_w(w)
+    d = np.asarray(dirs, dtype=np.float64)
+    if d.shape[-1:] != (3,):
+        raise ValueError(f"dirs must have shape (..., 3), got {d.shape}")
+    out_shape = d.shape[:-1]
+    d = d.reshape(-1, 3)
+    norm = np.linalg.norm(d, axis=1)
+    if not np.all(np.isfinite(norm)) or np.any(norm == 0):
+        raise ValueError("dirs must be finite and non-zero")
+    d = d / norm[:, None]
+    n, c = a.shape[1], a.shape[3]
+    src_dirs = cubemod.texel_directions(n).reshape(-1, 3)
+    omega = cubemod.texel_solid_angles(n).reshape(-1)
+    vals = a.reshape(-1, c) * omega[:, None]
+    out = np.empty((d.shape[0], c), dtype=np.float64)
+    step = max(1, chunk_elems // src_dirs.shape[0])
+    for s0 in range(0, d.shape[0], step):
+        cosv = d[s0:s0 + step] @ src_dirs.T
+        pos = cosv > 0
+        if w == 0:
+            wt = pos.astype(np.float64)
+        else:
+            with np.errstate(divide="ignore"):
+                lc = np.where(pos, np.log(np.where(pos, cosv, 1.0)), -np.inf)
+            lc -= lc.max(axis=1, keepdims=True)
+            wt = np.exp(w * lc)
+        wt *= pos
+        out[s0:s0 + step] = (wt @ vals) / (wt @ omega)[:, None]
+    return out.reshape(out_shape + (c,))
+
+
+def convolve_exact(cube: ArrayLike, w: float, out_size: int) -> NDArray[np.float64]:
+    """Exact normalized ``cos^w`` filter of ``cube`` ``(6, N, N, C)`` onto a ``(6, M, M, C)`` cube.
+
+    ``M = out_size``; output texels are evaluated at their GL texel-center directions.  Slow by
+    design (``6 M^2 x 6 N^2`` weights): the reference for tests and benchmarks.
+    """
+    m = int(out_size)
+    if m < 1:
+        raise ValueError(f"out_size must be >= 1, got {out_size}")
+    return convolve_exact_dirs(cube, w, cubemod.texel_directions(m))
+
+
+def omega_box_pyramid(cube: ArrayLike, levels: int) -> list[NDArray[np.float64]]:
+    """Solid-angle weighted 2x2 reductions: level ``j`` texel = exact mean of ``L`` over its solid angle.
+
+    ``sum(Omega * L)`` is the same at every level (solid angles add up exactly).  Stops early at
+    odd sizes.  Returns float64 arrays ``(6, N >> j, N >> j, C)``.
+    """
+    a = np.asarray(cube, dtype=np.float64)
+    out = [a]
+    n = a.shape[1]
+    om = cubemod.texel_solid_angles(n)[..., None]
+    wsum = a * om
+    for _ in range(1, levels):
+        if n % 2 or n < 2:
+            break
+        n //= 2
+        wsum = wsum.reshape(6, n, 2, n, 2, -1).sum(axis=(2, 4))
+        om = om.reshape(6, n, 2, n, 2, 1).sum(axis=(2, 4))
+        out.append(wsum / om)
+    return out
+
+
+def footprint_rects(dirs: ArrayLike, theta: float, n_src: int) -> NDArray[np.int32]:
+    """Texel rectangles per source face that hold every texel center within ``theta`` of each direction.
+
+    ``dirs`` is ``(M, 3)`` unit directions, ``theta`` the cap half-angle (radians), ``n_src`` the
+    source face size.  Returns ``(M, 6, 4)`` int32 ``(col0, col1, row0, row1)`` with exclusive
+    ends (empty when ``col0 >= col1``).  float64 bounding box of the cap's projection on each face
+    plane (an ellipse when the cap lies in front of the plane), widened by one texel; caps that
+    reach behind a face plane get the whole face (only wide lobes, where sources are small).
+    """
+    d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
+    m = d.shape[0]
+    n = int(n_src)
+    rects = np.zeros((m, 6, 4), dtype=np.int32)
+    full = np.array([0, n, 0, n], dtype=np.int32)
+    theta = float(min(max(theta, 0.0), math.pi)) * 1.0001 + 1e-9
+    if theta >= 1.2:
+        rects[:] = full
+        return rects
+    c, s = math.cos(theta), math.sin(theta)
+    for f in range(6):
+        dn, da, db = d @ _FN[f], d @ _FA[f], d @ _FB[f]
+        ell = dn > s + 1e-9
+        rest = ~ell & (dn > -s) & (2.0 * theta > math.asin(1.0 / math.sqrt(3.0)))
+        rects[rest, f] = full
+        if not ell.any():
+            continue
+        da_, db_, dn_ = da[ell], db[ell], dn[ell]
+        A, B, C = da_**2 - c * c, 2 * da_ * db_, db_**2 - c * c
+        D, E, F = 2 * da_ * dn_, 2 * db_ * dn_, dn_**2 - c * c
+
+        def span(qa, qb, qc, center):
+            disc = np.maximum(qb * qb - 4 * qa * qc, 0.0)
+            r1 = (-qb - np.sqrt(disc)) / (2 * qa)
+            r2 = (-qb + np.sqrt(disc)) / (2 * qa)
+            lo, hi = np.minimum(r1, r2), np.maximum(r1, r2)
+            return np.minimum(lo, center), np.maximum(hi, center)
+
+        a_lo, a_hi = span(4 * A * C - B * B, 4 * C * D - 2 * B * E, 4 * C * F - E * E, da_ / dn_)
+        b_lo, b_hi = span(4 * A * C - B * B, 4 * A * E - 2 * B * D, 4 * A * F - D * D, db_ / dn_)
+
+        def idx(lo, hi):
+            i0 = np.ceil((np.clip(lo, -1, 1) + 1) * 0.5 * n - 0.5) - 1
+            i1 = np.floor((np.clip(hi, -1, 1) + 1) * 0.5 * n - 0.5) + 2
+            return np.clip(i0, 0, n).astype(np.int32), np.clip(i1, 0, n).astype(np.int32)
+
+        c0, c1 = idx(a_lo, a_hi)
+        r0, r1 = idx(b_lo, b_hi)
+        rects[ell, f] = np.stack([c0, c1, r0, r1], axis=1)
+    return rects
+
+
+def _luminance(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Non-negative luminance weight of each texel of ``(..., C)``: Rec.709 Y of the first three
+    channels when ``C >= 3``, else the sum of the positive channels."""
+    if a.shape[-1] >= 3:
+        y = a[..., :3] @ _LUMA
+    else:
+        y = np.maximum(a, 0.0).sum(axis=-1)
+    return np.maximum(y, 0.0)
+
+
+class _Pyramid:
+    """Source levels of one batch of cubes ``(P, 6, N, N, C)`` for the GL filter (float64, CPU).
+
+    ``hot``: the level-0 texels brighter than ``HOT_FACTOR`` x the median positive luminance of
+    their cube (at most ``MAX_HOT`` per cube, the brightest), kept as exact point samples and
+    removed from the levels.  Level ``j``: ``s[j]`` ``(P, 6, n, n, C)`` sums of ``Omega * L``,
+    ``om[j]`` ``(6, n, n)`` solid angles, ``dirs[j]`` ``(P, 6, n, n, 3)`` unit luminance-weighted
+    centroid directions (texel centers at level 0).  ``dyn``: max / median luminance of what is
+    left (footprint truncation is relative to it).
+    """
+
+    def __init__(self, a: NDArray[np.float64], levels: int) -> None:
+        p, _, n, _, c = a.shape
+        om0 = cubemod.texel_solid_angles(n)
+        y = _luminance(a)
+        self.hot_idx: list[NDArray[np.int64]] = []
+        dyn = 1.0
+        keep = np.ones(y.shape, bool)
+        for i in range(p):
+            yi = y[i].reshape(-1)
+            pos = yi[yi > 0]
+            med = float(np.median(pos)) if pos.size else 0.0
+            cand = np.flatnonzero(yi > HOT_FACTOR * med) if pos.size else np.zeros(0, np.int64)
+            if cand.size > MAX_HOT:
+                cand = cand[np.argsort(yi[cand])[-MAX_HOT:]]
+            self.hot_idx.append(cand)
+            keep[i].reshape(-1)[cand] = False
+            rest = yi[keep[i].reshape(-1)]
+            if pos.size and rest.size and rest.max() > 0:
+                dyn = max(dyn, float(rest.max() / med))
+        self.dyn = dyn
+        d0 = cubemod.texel_directions(n)
+        self.hot_dirs = [d0.reshape(-1, 3)[h] for h in self.hot_idx]
+        self.hot_s = [(a[i] * om0[..., None]).reshape(-1, c)[h] for i, h in enumerate(self.hot_idx)]
+        s = a * om0[None, ..., None] * keep[..., None]
+        wgt = om0[None] * (np.where(keep, y, 0.0) + 1e-9 * max(float(y.max()), 1e-30))
+        mom = wgt[..., None] * d0[None]
+        self.s, self.om, self.dirs = [s], [om0], [np.broadcast_to(d0, (p,) + d0.shape)]
+        om = om0
+        for _ in range(1, levels):
+            if n % 2 or n < 2:
+                break
+            n //= 2
+            s = s.reshape(p, 6, n, 2, n, 2, c).sum(axis=(3, 5))
+            om = om.reshape(6, n, 2, n, 2).sum(axis=(2, 4))
+            wgt = wgt.reshape(p, 6, n, 2, n, 2).sum(axis=(3, 5))
+            mom = mom.reshape(p, 6, n, 2, n, 2, 3).sum(axis=(3, 5))
+            self.s.append(s)
+            self.om.append(om)
+            self.dirs.append(mom / np.linalg.norm(mom, axis=-1, keepdims=True))
+
+    @property
+    def sizes(self) -> list[int]:
+        return [x.shape[2] for x in self.s]
+
+
+def _footprint_theta(w: float, eps: float) -> float:
+    """Half-angle (radians) of the cap where ``cos^w >= eps`` (pi/2 for ``w = 0``)."""
+    return math.pi / 2 if w == 0 else math.acos(min(1.0, eps ** (1.0 / w)))
+
+
+def _source_level(w: float, theta: float, sizes: list[int], q: float, min_src: int) -> int:
+    """The coarsest source level with texels at most ``1/q`` of the lobe's RMS angle
+    (face-center texel ``2/N``), no coarser than ``min_src`` texels per face (or level 0), and
+    whose footprint stays under :data:`_LOOP_BUDGET` loop iterations (llvmpipe's loop limit)."""
+    sigma = 1.0 / math.sqrt(w + 2.0)
+    best = 0
+    for j, nj in enumerate(sizes):
+        if j and (nj < min_src or sigma < q * 2.0 / nj):
+            break
+        best = j
+    while best + 1 < len(sizes) and _loop_estimate(theta, sizes[best]) > _LOOP_BUDGET:
+        best += 1
+    return best
+
+
+def _loop_estimate(theta: float, n: int) -> float:
+    """Upper estimate of the loop iterations of one invocation: the rows visited plus the texels
+    in the cap (texels are up to 3^1.5 ~ 5.2x denser per steradian at face corners)."""
+    cap = 2.0 * math.pi * (1.0 - math.cos(min(theta, math.pi)))
+    texels = min(cap * 5.2 * (n / 2.0) ** 2, 6.0 * n * n)
+    return texels + 6.0 * n
+
+
+class _GLFilter:
+    def __init__(self, ctx: Any) -> None:
+        from envcap.core.resources import shader_source
+
+        self.ctx = ctx
+        self.prog = ctx.compute_shader(shader_source("prefilter_lobe.glsl"))
+
+    def run(self, s4: NDArray[np.float64], dirs: NDArray[np.float64], om: NDArray[np.float64],
+            hot_s: list[NDArray[np.float64]], hot_d: list[NDArray[np.float64]], n_out: int, w: float,
+            eps: float, theta: float, n0: int) -> NDArray[np.float32]:
+        """Filter one 4-channel block: ``s4`` ``(P, 6, n, n, 4)`` Omega * L, ``dirs`` ``(P, 6, n, n, 3)``,
+        ``om`` ``(6, n, n)``; hot lists per probe.  Returns ``(P, 6, n_out, n_out, 4)`` float32."""
+        ctx = self.ctx
+        p, n = s4.shape[0], s4.shape[2]
+        d4 = np.empty((p, 6, n, n, 4), np.float32)
+        d4[..., :3] = dirs
+        d4[..., 3] = om
+        hs = np.concatenate([h for h in hot_s] + [np.zeros((1, 4))]).astype(np.float32)
+        hd = np.concatenate([np.pad(h, ((0, 0), (0, 1))) for h in hot_d] + [np.zeros((1, 4))]).astype(np.float32)
+        counts = np.array([h.shape[0] for h in hot_s], np.int32)
+        hr = np.stack([np.concatenate([[0], np.cumsum(counts)[:-1]]), counts], 1).astype(np.int32)
+        count = p * 6 * n_out * n_out
+        bufs = [ctx.buffer(np.ascontiguousarray(s4, np.float32).tobytes()), ctx.buffer(d4.tobytes()),
+                ctx.buffer(hs.tobytes()), ctx.buffer(hd.tobytes()), ctx.buffer(hr.tobytes()),
+                ctx.buffer(reserve=count * 16)]
+        try:
+            for b, buf in enumerate(bufs):
+                buf.bind_to_storage_buffer(b)
+            full = theta >= 1.2
+            pr = self.prog
+            pr["count"].value = count
+            pr["n_out"].value = n_out
+            pr["n_src"].value = n
+            pr["w"].value = float(w)
+            pr["log_floor"].value = float(max(math.log(eps), -80.0)) if not full else -1e30
+            pr["blur_var"].value = float((1.0 - (n / n0) ** 2) * (2.0 / n) ** 2 / 12.0)
+            pr["theta"].value = float(theta)
+            pr["cos_theta"].value = float(math.cos(theta))
+            pr["full"].value = full
+            groups = (count + 63) // 64
+            gx = min(groups, 1024)
+            pr.run(group_x=gx, group_y=(groups + gx - 1) // gx)
+            out = np.frombuffer(bufs[5].read(), dtype=np.float32).reshape(p, 6, n_out, n_out, 4).copy()
+        finally:
+            for buf in bufs:
+                buf.release()
+        bad = ~np.isfinite(out).all(axis=-1)
+        if bad.any():  # every weight underflowed (lobe << one source texel): the nearest texel, w -> inf
+            pi, f, r, c = np.nonzero(bad)
+            d = cubemod.face_uv_to_direction(f, (c + 0.5) * 2.0 / n_out - 1.0, (r + 0.5) * 2.0 / n_out - 1.0)
+            ff, rr, cc = cubemod.direction_to_texel(d, n)
+            out[pi, f, r, c] = (s4[pi, ff, rr, cc] / om[ff, rr, cc, None]).astype(np.float32)
+        return out
+
+    def release(self) -> None:
+        self.prog.release()
+
+
+Quality = Literal["fast", "default", "high"]
+
+
+def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: Quality = "default",
+                   ctx: Any = None, progress: bool | None = None,
+                   batch_bytes: int = 64 << 20) -> list[NDArray[np.float32]]:
+    """Filter ``P`` cubes ``(P, 6, N, N, C)`` into cosine-lobe chains: a list of ``(P, 6, N_k, N_k, C)``.
+
+    Same result as :func:`prefilter_chain` on each cube (one GL dispatch per level and channel
+    block for a batch of probes whose source buffers fit ``batch_bytes``), the form a probe-set
+    bake wants: level ``k`` of all probes is one array, ready for a cube-map array.
+    """
+    from tqdm import tqdm
+
+    a = np.asarray(cubes)
+    if a.ndim != 5:
+        raise ValueError(f"cubes must have shape (P, 6, N, N, C), got {a.shape}")
+    if a.shape[0] < 1:
+        raise ValueError("cubes must hold at least one cube (P >= 1)")
+    if a.shape[1] != 6 or a.shape[2] != a.shape[3] or a.shape[2] < 1 or a.shape[4] < 1:
+        raise ValueError(f"cubes must have shape (P, 6, N, N, C), got {a.shape}")
+    a = np.stack([check_finite_cube(c, f"cube {i}") for i, c in enumerate(a)]) if a.shape[0] > 1 \
+        else check_finite_cube(a[0])[None]
+    p_all, _, n, _, nch = a.shape
+    if ladder is None:
+        ladder = lobe_ladder(n)
+    if ladder.sizes[0] != n:
+        raise ValueError(f"ladder is for {ladder.sizes[0]}-texel faces, cube has {n}")
+    if quality not in QUALITY:
+        raise ValueError(f"quality must be one of {sorted(QUALITY)}, got {quality!r}")
+    q, eps0, min_src = QUALITY[quality]
+    chain = [np.empty((p_all, 6, s, s, nch), np.float32) for s in ladder.sizes]
+    chain[0][:] = a
+    if ladder.levels == 1:
+        return chain
+    own = ctx is None
+    if own:
+        from envcap.gpu.gl import create_context
+
+        ctx = create_context()
+    filt = _GLFilter(ctx)
+    per = max(1, int(batch_bytes // (6 * n * n * 16)))
+    try:
+        bar = tqdm(total=p_all * (ladder.levels - 1), desc="prefilter", unit="level",
+                   disable=None if progress is None else not progress)
+        for b0 in range(0, p_all, per):
+            batch = a[b0:b0 + per]
+            pyr = _Pyramid(batch, ladder.levels)
+            eps = eps0 / max(pyr.dyn, 1.0)
+            for k in range(1, ladder.levels):
+                w = float(ladder.powers[k])
+                theta = _footprint_theta(w, eps)
+                j = _source_level(w, theta, pyr.sizes, q, min_src)
+                for c0 in range(0, nch, 4):
+                    cc = min(4, nch - c0)
+                    s4 = np.zeros(pyr.s[j].shape[:-1] + (4,), np.float64)
+                    s4[..., :cc] = pyr.s[j][..., c0:c0 + cc]
+                    hs = [np.pad(h[:, c0:c0 + cc], ((0, 0), (0, 4 - cc))) for h in pyr.hot_s]
+                    res = filt.run(s4, pyr.dirs[j], pyr.om[j], hs, pyr.hot_dirs, ladder.sizes[k], w, eps, theta, n)
+                    chain[k][b0:b0 + per, ..., c0:c0 + cc] = res[..., :cc]
+                bar.update(batch.shape[0])
+        bar.close()
+    finally:
+        filt.release()
+        if own:
+            ctx.release()
+    return chain
+
+
+def prefilter_level(cube: ArrayLike, w: float, out_size: int, quality: Quality = "default",
+                    ctx: Any = None) -> NDArray[np.float32]:
+    """One normalized ``cos^w`` level of ``cube`` ``(6, N, N, C)`` on a ``(6, M, M, C)`` grid
+    (``M = out_size``, any ``w >= 0``), by the same GL filter as :func:`prefilter_chain`.
+
+    For chains built on other ladders (e.g. the cmft comparison in ``envcap bench zw``).
+    """
+    a = check_finite_cube(cube)
+    w = _check_w(w)
+    m = int(out_size)
+    if m < 1:
+        raise ValueError(f"out_size must be >= 1, got {out_size}")
+    if quality not in QUALITY:
+        raise ValueError(f"quality must be one of {sorted(QUALITY)}, got {quality!r}")
+    q, eps0, min_src = QUALITY[quality]
+    own = ctx is None
+    if own:
+        from envcap.gpu.gl import create_context
+
+        ctx = create_context()
+    filt = _GLFilter(ctx)
+    try:
+        n, nch = a.shape[1], a.shape[3]
+        pyr = _Pyramid(a[None], n.bit_length())
+        eps = eps0 / max(pyr.dyn, 1.0)
+        theta = _footprint_theta(w, eps)
+        j = _source_level(w, theta, pyr.sizes, q, min_src)
+        out = np.empty((6, m, m, nch), np.float32)
+        for c0 in range(0, nch, 4):
+            cc = min(4, nch - c0)
+            s4 = np.zeros(pyr.s[j].shape[:-1] + (4,), np.float64)
+            s4[..., :cc] = pyr.s[j][..., c0:c0 + cc]
+            hs = [np.pad(h[:, c0:c0 + cc], ((0, 0), (0, 4 - cc))) for h in pyr.hot_s]
+            out[..., c0:c0 + cc] = filt.run(s4, pyr.dirs[j], pyr.om[j], hs, pyr.hot_dirs, m, w, eps, theta, n)[0, ..., :cc]
+    finally:
+        filt.release()
+        if own:
+            ctx.release()
+    return out
+
+
+def prefilter_chain(cube: ArrayLike, ladder: LobeLadder | None = None, quality: Quality = "default",
+                    ctx: Any = None, progress: bool | None = None) -> list[NDArray[np.float32]]:
+    """Filter ``cube`` ``(6, N, N, C)`` into a cosine-lobe mip chain ``[(6, N_k, N_k, C)]`` (float32).
+
+    Level 0 is the input (unfiltered, as float32).  Level ``k >= 1`` is the normalized
+    ``cos^w_k`` average (``ladder`` defaults to :func:`envcap.core.lobes.lobe_ladder`), computed by a
+    GLSL compute pass (one dispatch per level) from the coarsest solid-angle box reduction of the
+    input whose texels are at most ``1/q`` of the lobe's RMS angle, each coarse texel placed at
+    its luminance-weighted centroid direction, over the footprint where
+    ``cos^w >= eps / D * peak`` (``D``: dynamic range left after the hot texels; ``quality``:
+    ``(q, eps, min source size)`` in :data:`QUALITY`).  The few texels brighter than
+    :data:`HOT_FACTOR` x the median (a sun) are summed exactly at full resolution.
+    ``ctx``: a moderngl context (one is created and released when ``None``).  ``progress``:
+    tqdm bar (``None``: only on a TTY).  Accuracy and speed: ``docs/prefilter.md``.
+    """
+    a = check_finite_cube(cube)
+    return [lv[0] for lv in prefilter_many(a[None], ladder, quality, ctx, progress)]

@@ -1,0 +1,1 @@
+"""Probe sets: placement along streets, the bake, the manifest, reading and writing."""

@@ -1,0 +1,1 @@
+"""Skies: analytic daylight, lat-long HDR files, the sun."""
