@@ -1,1 +1,1 @@
-"""Probe sets: placement along streets, the bake, the manifest, reading and writing."""
+"""Probe sets: placement along streets, the planes, the bake, the typed manifest, the directory store."""

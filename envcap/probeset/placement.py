@@ -1,38 +1,18 @@
-"""Probe placement along streets, and the street's three planes fitted from captured distances.
+"""Probe placement along a street's center line.
 
 A street (:class:`envcap.scene.model.Street`) has a probe line along its center at a fixed
-height.  Each probe records its three planes as absolute world coordinates: the two facade
-coordinates on the street's cross axis and the ground height.  They come from the scene's street
-description (*nominal*), and can also be fitted from the probe's own distance channel
-(:func:`fit_planes`), which is what an imported mesh needs.
+height.  Each probe records its nominal planes (:class:`envcap.probeset.planes.Planes`, from the
+street description); the bake fits its own planes from its capture
+(:func:`envcap.probeset.planes.fit_planes`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
-import numpy as np
-from numpy.typing import NDArray
-
-from envcap.core import cube
+from envcap.probeset.planes import Planes
 from envcap.scene.model import Street
-
-
-@dataclass(frozen=True)
-class Planes:
-    """The three planes of the parallax model, in absolute world coordinates (meters).
-
-    ``facade_min`` < ``facade_max`` are coordinates on the street's cross axis (x for a street
-    along z, z for a street along x); ``ground`` is a height (y).
-    """
-
-    facade_min: float
-    facade_max: float
-    ground: float
-
-    def as_dict(self) -> dict[str, float]:
-        return {k: float(v) for k, v in asdict(self).items()}
 
 
 @dataclass(frozen=True)
@@ -68,140 +48,3 @@ def place_probes(street: Street, spacing: float = 5.0, height: float = 2.0) -> l
         pos[street.cross_index] = street.center_line
         out.append(ProbePlacement(street.name, i, (pos[0], pos[1], pos[2]), planes))
     return out
-
-
-@dataclass(frozen=True)
-class FittedPlanes:
-    """Planes fitted from a probe's distance channel.
-
-    A plane that the capture does not see well enough (its supporting texels cover less than
-    ``min_coverage_sr`` steradians) is ``None``: the caller falls back to
-    the nominal plane.  ``coverage`` gives, per plane, the solid angle (sr) of the texels that
-    support it; ``spread`` the robust spread (m, median absolute deviation) of their coordinates.
-    """
-
-    facade_min: float | None
-    facade_max: float | None
-    ground: float | None
-    coverage: dict[str, float]
-    spread: dict[str, float]
-
-    def merged(self, nominal: Planes) -> Planes:
-        """These planes where fitted, the nominal ones elsewhere."""
-        return Planes(
-            nominal.facade_min if self.facade_min is None else self.facade_min,
-            nominal.facade_max if self.facade_max is None else self.facade_max,
-            nominal.ground if self.ground is None else self.ground,
-        )
-
-    def as_dict(self) -> dict[str, object]:
-        return {
-            "facade_min": self.facade_min,
-            "facade_max": self.facade_max,
-            "ground": self.ground,
-            "coverage_sr": {k: round(v, 6) for k, v in self.coverage.items()},
-            "spread_m": {k: round(v, 6) for k, v in self.spread.items()},
-        }
-
-
-def _robust_mode(
-    values: NDArray[np.float64], weights: NDArray[np.float64], bin_m: float, near: float, min_weight: float
-) -> tuple[float, float]:
-    """The plane among ``values`` (hit coordinates, with solid-angle ``weights``).
-
-    Histogram with ``bin_m`` bins, smoothed over 3 bins; every local maximum that holds at least
-    ``min_weight`` and a quarter of the highest peak is a candidate plane, and the candidate
-    closest to ``near`` (the probe) wins: the street front, not a wall seen through a gap.  The
-    estimate is refined by the weighted median of the values within 2 bins of the peak.
-    Returns (estimate, median absolute deviation).
-    """
-    lo, hi = float(values.min()), float(values.max())
-    nb = max(1, int(math.ceil((hi - lo) / bin_m)) + 1)
-    idx = np.minimum(((values - lo) / bin_m).astype(np.int64), nb - 1)
-    hist = np.bincount(idx, weights=weights, minlength=nb)
-    smooth = hist.copy()
-    smooth[1:] += hist[:-1]
-    smooth[:-1] += hist[1:]
-    padded = np.concatenate([[-1.0], smooth, [-1.0]])
-    is_max = (smooth >= padded[:-2]) & (smooth >= padded[2:])
-    good = is_max & (smooth >= max(min_weight, 0.25 * smooth.max()))
-    cand = np.flatnonzero(good)
-    centers = lo + (cand + 0.5) * bin_m
-    peak = float(centers[np.argmin(np.abs(centers - near))])
-    sel = np.abs(values - peak) <= 2 * bin_m
-    v, w = values[sel], weights[sel]
-    order = np.argsort(v)
-    cw = np.cumsum(w[order])
-    med = float(v[order][np.searchsorted(cw, 0.5 * cw[-1])])
-    mad = float(np.median(np.abs(v - med)))
-    return med, mad
-
-
-def fit_planes(
-    position: NDArray[np.floating] | tuple[float, float, float],
-    distance: NDArray[np.floating],
-    alpha: NDArray[np.floating],
-    axis: str,
-    *,
-    min_coverage_sr: float = 0.05,
-    bin_m: float = 0.05,
-    max_distance: float = 500.0,
-) -> FittedPlanes:
-    """Fit the two facade planes and the ground plane from one probe's distance channel.
-
-    ``position`` (3,) is the probe center (m); ``distance`` (6, N, N) the radial distance (m) and
-    ``alpha`` (6, N, N) the coverage (geometry where > 0.5) of its capture, in the conventions of
-    :mod:`envcap.core.cube`; ``axis`` is the street axis ("x" or "z").
-
-    Method (robust to windows, gaps between buildings, cars and ragged setbacks): every covered
-    texel gives a hit point ``p + d * distance``.  Texels looking down (d_y < -0.5) vote for the
-    ground with their hit height; texels looking sideways towards either facade
-    (|d_cross| > 0.5 and |d_y| < 0.7) vote for that facade with their hit cross coordinate.  Each
-    vote is weighted by its texel's solid angle.  The votes' histogram (``bin_m`` bins) has a
-    peak per plane-like surface; of the substantial peaks, the one nearest the probe is the plane
-    (the street front rather than a wall seen through a gap), refined by the weighted median
-    near it.  Peaks, not means, are what make it robust: rays through a gap, onto a set-back
-    building or onto windows only add votes elsewhere.  A facade must lie on its own side of the probe.
-    """
-    if axis not in ("x", "z"):
-        raise ValueError(f"street axis must be 'x' or 'z', got {axis!r}")
-    distance = cube.check_cube(np.asarray(distance, dtype=np.float64)[..., None], "distance")[..., 0]
-    alpha = np.asarray(alpha, dtype=np.float64)
-    if alpha.shape != distance.shape:
-        raise ValueError(f"alpha shape {alpha.shape} differs from distance shape {distance.shape}")
-    p = np.asarray(position, dtype=np.float64)
-    if p.shape != (3,) or not np.all(np.isfinite(p)):
-        raise ValueError(f"probe position must be 3 finite numbers, got {position!r}")
-    n = distance.shape[1]
-    dirs = cube.texel_directions(n)
-    omega = cube.texel_solid_angles(n)
-    ok = (alpha > 0.5) & np.isfinite(distance) & (distance > 0) & (distance < max_distance)
-    hits = p + dirs * np.where(ok, distance, 0.0)[..., None]
-    ci = 2 if axis == "x" else 0
-    dy = dirs[..., 1]
-    dc = dirs[..., ci]
-
-    def fit(mask: NDArray[np.bool_], coord: NDArray[np.float64], near: float) -> tuple[float | None, float, float]:
-        m = mask & ok
-        cov = float(omega[m].sum())
-        if cov < min_coverage_sr or not np.any(m):
-            return None, cov, float("nan")
-        est, mad = _robust_mode(coord[m], omega[m], bin_m, near, 0.25 * min_coverage_sr)
-        return est, cov, mad
-
-    ground, cg, sg = fit(dy < -0.5, hits[..., 1], p[1])
-    # Facade votes: sideways texels whose hit is not on the ground (those only spread along the
-    # cross axis and would bias the mode).
-    gy = ground if ground is not None else float(np.min(np.where(ok, hits[..., 1], np.inf), initial=p[1]))
-    off_ground = hits[..., 1] > gy + max(0.1, 4 * bin_m)
-    sideways = (np.abs(dy) < 0.7) & off_ground
-    fmax, cmax, smax = fit((dc > 0.5) & sideways, hits[..., ci], p[ci])
-    fmin, cmin, smin = fit((dc < -0.5) & sideways, hits[..., ci], p[ci])
-    if fmax is not None and fmax <= p[ci]:
-        fmax = None
-    if fmin is not None and fmin >= p[ci]:
-        fmin = None
-    if ground is not None and ground >= p[1]:
-        ground = None
-    spread = {k: (0.0 if not math.isfinite(v) else v) for k, v in (("facade_min", smin), ("facade_max", smax), ("ground", sg))}
-    return FittedPlanes(fmin, fmax, ground, {"facade_min": cmin, "facade_max": cmax, "ground": cg}, spread)

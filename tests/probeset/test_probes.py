@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from envcap.core import cube
-from envcap.probeset.placement import fit_planes, place_probes
+from envcap.probeset.placement import place_probes
+from envcap.probeset.planes import Planes, fit_planes
 from envcap.scene.model import Street
 
 
@@ -79,8 +80,6 @@ def test_fit_is_robust_to_gaps_between_buildings():
 
 
 def test_a_side_without_buildings_is_not_fitted_and_falls_back_to_nominal():
-    from envcap.probeset.placement import Planes
-
     p = np.array([0.0, 2.0, 0.0])
     dist, alpha = analytic_capture(p, 32, -6.0, 6.0, 0.0, 20.0)
     d = cube.texel_directions(32)
@@ -90,6 +89,8 @@ def test_a_side_without_buildings_is_not_fitted_and_falls_back_to_nominal():
     alpha = np.where(open_side, (d[..., 1] < 0).astype(np.float32), alpha)
     fit = fit_planes(p, dist, alpha, "z", max_distance=50.0)
     assert fit.facade_max is None
+    assert fit.coverage_sr.facade_max < 0.05 and fit.spread_m.facade_max == 0.0  # not seen: no spread
+    assert fit.coverage_sr.ground > 1.0  # the lower hemisphere sees the ground almost everywhere
     merged = fit.merged(Planes(-6.0, 30.0, 0.0))
     assert merged.facade_max == 30.0 and merged.facade_min == pytest.approx(-6.0, abs=0.05)
 

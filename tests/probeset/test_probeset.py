@@ -1,8 +1,9 @@
-"""Probe-set directories: round trip, atomic failure, manifest validation, bad inputs."""
+"""Probe-set directories: round trip, atomic failure, arrays checked against the manifest, bad inputs."""
 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import OpenEXR
@@ -10,7 +11,10 @@ import pytest
 from PIL import Image
 
 from envcap.core.cube import texel_directions
-from envcap.probeset.store import ProbeSet, new_manifest, read_probe_set, validate_manifest, write_probe_set
+from envcap.outputs import MARKER_NAME
+from envcap.probeset.manifest import Files, Level, Manifest, Planes, Probe, SkyInfo, Street, level_table
+from envcap.probeset.probe_set import ProbeSet
+from envcap.probeset.store import read_probe_set, write_probe_set
 
 N, NLEV = 8, 4
 
@@ -39,6 +43,16 @@ def mips(a: np.ndarray, nlev: int) -> list[np.ndarray]:
     return out
 
 
+def make_manifest(xs, resolution: int = N, nlev: int = NLEV) -> Manifest:
+    plan = Planes(-10.0, 10.0, 0.0)
+    probes = tuple(Probe(i, i, (float(x), 1.7, 0.0), plan, None, False) for i, x in enumerate(xs))
+    levels = level_table(resolution, nlev)
+    levels = (levels[0], Level(1, resolution >> 1, np.float32(64.0)), *levels[2:])  # numpy scalars are accepted
+    return Manifest(resolution=resolution, levels=levels, probe_height=1.7, probe_spacing=4.0,
+                    streets=(Street("main", "x", -5.0, 5.0, 0.0, plan, probes),),
+                    effects=("sun_light",), passes_run=("sun_light",), sky=SkyInfo({}))
+
+
 def make_set(layers: int = 3) -> ProbeSet:
     xs = np.linspace(-4, 4, layers)
     probes = [street_probe(N, x) for x in xs]
@@ -46,30 +60,23 @@ def make_set(layers: int = 3) -> ProbeSet:
     dist = np.stack([p[1] for p in probes])
     sky0 = np.ones((6, N, N, 4), np.float32) * 1000
     sky0[2, 3, 4, :3] = 1.6e9  # the sun: beyond half range
-    plan = {"facade_min": -10.0, "facade_max": 10.0, "ground": 0.0}
-    m = new_manifest(
-        N, NLEV, probe_height=1.7, probe_spacing=4.0,
-        streets=[{"name": "main", "axis": "x", "start": -5.0, "end": 5.0, "center": 0.0, "planes": plan,
-                  "probes": [{"layer": i, "position": [float(x), 1.7, 0.0], "planes": plan,
-                              "fitted_planes": None} for i, x in enumerate(xs)]}],
-        effects=["sun_light"], passes_run=["sun_light"],
-    )
-    m["levels"][1]["lobe_power"] = np.float32(64.0)  # numpy scalars are accepted
-    return ProbeSet(manifest=m, levels=mips(arr, NLEV), distance=dist, sky_levels=mips(sky0, NLEV))
+    return ProbeSet(manifest=make_manifest(xs), levels=mips(arr, NLEV), distance=dist, sky_levels=mips(sky0, NLEV))
 
 
 def test_roundtrip(tmp_path):
     ps = make_set()
     out = write_probe_set(tmp_path / "set", ps)
     names = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file())
-    assert names == ["exr/probe_000.exr", "exr/probe_001.exr", "exr/probe_002.exr", "manifest.json",
+    assert names == [MARKER_NAME, "exr/probe_000.exr", "exr/probe_001.exr", "exr/probe_002.exr", "manifest.json",
                      "previews/contact_sheet.png", "previews/probe_000.png", "previews/probe_001.png",
                      "previews/probe_002.png", "previews/sky.png", "probes.ktx2", "sky.ktx2"]
-    assert ps.manifest["files"] == {}  # caller's manifest untouched
+    assert ps.manifest.files == Files()  # caller's manifest untouched
     back = read_probe_set(out)
-    assert back.manifest["files"]["probes"] == "probes.ktx2"
-    assert back.manifest["levels"][1]["lobe_power"] == 64.0
-    assert back.manifest["streets"][0]["probes"][2]["position"] == [4.0, 1.7, 0.0]
+    assert back.manifest.files.probes == "probes.ktx2"
+    assert back.manifest.files.exr == ("exr/probe_000.exr", "exr/probe_001.exr", "exr/probe_002.exr")
+    assert back.manifest.levels[1].lobe_power == 64.0
+    assert back.manifest.streets[0].probes[2].position == (4.0, 1.7, 0.0)
+    assert back.manifest.streets == ps.manifest.streets and back.manifest.levels == ps.manifest.levels
     for k in range(NLEV):
         assert back.levels[k].shape == (3, 6, N >> k, N >> k, 4)
         # probes.ktx2 is RGBA16F: exact for half-representable data, within half rounding otherwise
@@ -85,7 +92,7 @@ def test_roundtrip(tmp_path):
     assert Image.open(out / "previews/probe_000.png").size == (4 * N, 3 * N)
     # Without EXR and previews: no distance on read.
     out2 = write_probe_set(tmp_path / "lean", ps, exr=False, previews=False)
-    assert sorted(p.name for p in out2.iterdir()) == ["manifest.json", "probes.ktx2", "sky.ktx2"]
+    assert sorted(p.name for p in out2.iterdir()) == [MARKER_NAME, "manifest.json", "probes.ktx2", "sky.ktx2"]
     assert read_probe_set(out2).distance is None
 
 
@@ -108,38 +115,15 @@ def test_failure_leaves_nothing_and_keeps_old_output(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["set"]  # no temp dirs left
 
 
-@pytest.mark.parametrize(
-    "mutate,msg",
-    [
-        (lambda m: m.update(format="other"), "format"),
-        (lambda m: m.update(version=2), "version 2 not supported"),
-        (lambda m: m.update(units="feet"), "units"),
-        (lambda m: m.update(resolution=0), "resolution"),
-        (lambda m: m["levels"][1].update(size=3), r"levels\[1\]"),
-        (lambda m: m["levels"][0].update(lobe_power=-1), "lobe_power"),
-        (lambda m: m["streets"][0].update(axis="y"), "axis"),
-        (lambda m: m["streets"][0]["probes"][1].update(layer=0), "layers must be 0..2"),
-        (lambda m: m["streets"][0]["probes"][0].update(position=[0, 1]), "position"),
-        (lambda m: m["streets"][0]["planes"].update(facade_max=-20.0), "facade_max"),
-        (lambda m: m.update(probe_spacing=0), "probe_spacing"),
-        (lambda m: m["sky"].update(format="RGBA16F"), "sky"),
-    ],
-)
-def test_manifest_validation(mutate, msg):
-    m = json.loads(json.dumps(make_set().manifest, default=float))
-    assert validate_manifest(m) == 3
-    mutate(m)
-    with pytest.raises(ValueError, match=msg):
-        validate_manifest(m)
-
-
 def test_shapes_checked_against_manifest(tmp_path):
     ps = make_set()
     ps.levels = ps.levels[:3]
     with pytest.raises(ValueError, match="disagree with the manifest"):
         write_probe_set(tmp_path / "a", ps)
     ps = make_set(layers=2)
-    ps.manifest["streets"][0]["probes"].append({"layer": 2, "position": [0, 1.7, 0], "planes": ps.manifest["streets"][0]["planes"], "fitted_planes": None})
+    st = ps.manifest.streets[0]
+    extra = Probe(2, 2, (0.0, 1.7, 0.0), st.planes, None, False)
+    ps.manifest = replace(ps.manifest, streets=(replace(st, probes=st.probes + (extra,)),))
     with pytest.raises(ValueError, match="2 layers but the manifest lists 3"):
         write_probe_set(tmp_path / "a", ps)
     ps = make_set()
@@ -149,7 +133,7 @@ def test_shapes_checked_against_manifest(tmp_path):
     with pytest.raises(ValueError, match="0 where alpha is 0"):
         write_probe_set(tmp_path / "a", ps)
     ps = make_set()
-    ps.manifest["timings"]["capture_s"] = float("nan")
+    ps.manifest = ps.manifest.with_timings(capture_s=float("nan"))
     with pytest.raises(ValueError, match="strict JSON"):
         write_probe_set(tmp_path / "a", ps)
     assert list(tmp_path.iterdir()) == []
