@@ -3,10 +3,12 @@
 :func:`run_glsl` wraps a GLSL ``body`` in a compute shader: every input array of shape
 ``(n, k)`` (``k`` <= 4) is a read-only SSBO seen in GLSL as ``vec4 NAME[]`` (unused components
 zero), every output a write-only ``vec4 NAME[]``; the body runs once per index ``i`` (a
-``uint``) and writes ``NAME[i]``.  Textures: a probe cube-map array (``envcap.gpu.gl``
-``CubeArrayTexture``) bound to ``samplerCubeArray probes`` at unit 3 and a sky cube
-(``cube_texture``) bound to ``samplerCube sky`` at unit 4, both declared by the harness when
-given.  Uniforms are set by name (scalars, or arrays written as float32 / int32).
+``uint``) and writes ``NAME[i]``.  Textures: a probe cube-map array
+(:class:`envcap.gpu.cube_array.CubeArrayTexture`) bound to ``samplerCubeArray probes`` at unit 3
+and a sky cube (:func:`envcap.gpu.cube_array.cube_texture`) bound to ``samplerCube sky`` at
+unit 4, both declared by the harness when given.  Uniforms are set by name with
+:func:`envcap.gpu.uniforms.set_uniforms`: a name that the compiled source does not declare is an
+error (one it declares but does not use is skipped).
 
 Example::
 
@@ -19,10 +21,13 @@ from __future__ import annotations
 
 from typing import Any, Mapping, Sequence
 
+import moderngl
 import numpy as np
 from numpy.typing import NDArray
 
 from envcap.core.resources import shader_source
+from envcap.gpu.cube_array import CubeArrayTexture
+from envcap.gpu.uniforms import set_uniforms
 
 LOCAL_SIZE = 64
 MAX_GROUPS = 65535
@@ -57,7 +62,7 @@ def _as_columns(name: str, a: Any) -> NDArray[np.float32]:
     return out
 
 
-def build_source(body: str, inputs: Sequence[str], outputs: Sequence[str], *, includes: Sequence[str] = ("envcap_runtime.glsl",),
+def build_source(body: str, inputs: Sequence[str], outputs: Sequence[str], *, includes: Sequence[str] = ("runtime/envcap_runtime.glsl",),
                  declarations: str = "", defines: Mapping[str, object] | None = None, probes: bool = False,
                  sky: bool = False) -> str:
     """The compute shader :func:`run_glsl` compiles (returned for inspection)."""
@@ -77,41 +82,16 @@ def build_source(body: str, inputs: Sequence[str], outputs: Sequence[str], *, in
                             body="\n".join("    " + ln for ln in body.splitlines()))
 
 
-def set_uniforms(prog: Any, uniforms: Mapping[str, Any]) -> None:
-    """Set uniforms by name; names the compiler optimized away are skipped.
-
-    Python ints and int arrays become GLSL ints, everything else float32.  Arrays are written
-    whole (shorter arrays fill the leading elements).
-    """
-    for name, val in uniforms.items():
-        if name not in prog:
-            continue
-        u = prog[name]
-        arr = np.asarray(val)
-        if arr.dtype.kind in "iub" and arr.dtype != np.bool_:
-            data = arr.astype(np.int32)
-        else:
-            data = arr.astype(np.float32)
-        if data.ndim == 0:
-            u.value = data.item()
-            continue
-        buf = np.zeros(u.array_length * u.dimension, dtype=data.dtype)
-        flat = data.ravel()
-        if flat.size > buf.size:
-            raise ValueError(f"uniform '{name}' holds {buf.size} values, got {flat.size}")
-        buf[: flat.size] = flat
-        u.write(buf.tobytes())
-
-
-def run_glsl(ctx: Any, body: str, inputs: Mapping[str, Any], outputs: Mapping[str, int], *,
+def run_glsl(ctx: moderngl.Context, body: str, inputs: Mapping[str, Any], outputs: Mapping[str, int], *,
              uniforms: Mapping[str, Any] | None = None, declarations: str = "",
-             includes: Sequence[str] = ("envcap_runtime.glsl",), defines: Mapping[str, object] | None = None,
-             probes: Any = None, sky: Any = None) -> dict[str, NDArray[np.float32]]:
+             includes: Sequence[str] = ("runtime/envcap_runtime.glsl",), defines: Mapping[str, object] | None = None,
+             probes: CubeArrayTexture | None = None,
+             sky: moderngl.TextureCube | None = None) -> dict[str, NDArray[np.float32]]:
     """Run ``body`` for every index of the inputs and return the outputs as float32 arrays.
 
     ``inputs``: name -> array ``(n,)`` or ``(n, k)`` (k <= 4), all of the same ``n`` >= 1.
     ``outputs``: name -> number of components to return (1..4); each comes back as ``(n, k)``.
-    ``probes``: a :class:`envcap.gpu.gl.CubeArrayTexture` (declared ``probes``); ``sky``: a moderngl
+    ``probes``: a :class:`envcap.gpu.cube_array.CubeArrayTexture` (declared ``probes``); ``sky``: a moderngl
     ``TextureCube`` (declared ``sky``).  Work larger than one dispatch is split.
     """
     if not inputs:
@@ -141,7 +121,7 @@ def run_glsl(ctx: Any, body: str, inputs: Mapping[str, Any], outputs: Mapping[st
             buf.bind_to_storage_buffer(len(cols) + b)
             outs.append(buf)
         bufs += outs
-        set_uniforms(prog, uniforms or {})
+        set_uniforms(prog, uniforms or {}, sources=(src,))
         if probes is not None:
             probes.use(PROBES_UNIT)
         if sky is not None:
@@ -149,8 +129,7 @@ def run_glsl(ctx: Any, body: str, inputs: Mapping[str, Any], outputs: Mapping[st
         step = LOCAL_SIZE * MAX_GROUPS
         for base in range(0, n, step):
             cnt = min(step, n - base)
-            prog["envcap_base"].value = base
-            prog["envcap_count"].value = cnt
+            set_uniforms(prog, {"envcap_base": base, "envcap_count": cnt})
             prog.run(group_x=(cnt + LOCAL_SIZE - 1) // LOCAL_SIZE)
         result = {}
         for (name, c), buf in zip(outputs.items(), outs):

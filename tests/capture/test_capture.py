@@ -1,4 +1,4 @@
-"""HDR cube capture (envcap.capture.renderer) on real OpenGL (llvmpipe), checked against hand-derived cases.
+"""HDR cube capture (envcap.capture) on real OpenGL (llvmpipe), checked against hand-derived cases.
 
 References: envcap.core.cube (texel directions / direction_to_texel) for face orientation, analytic
 ray-box distances, Lambert's law for the sun, the closed-form irradiance of a uniform sky
@@ -11,7 +11,13 @@ import numpy as np
 import pytest
 
 from envcap.core import cube
-from envcap.capture.renderer import CubeCapture, face_clip_matrix, probe_inside_geometry, sh9_basis, sky_irradiance_sh
+from envcap.capture.culling import chunk_face_visibility, chunk_triangles
+from envcap.capture.outputs import probe_inside_geometry
+from envcap.capture.projection import FACE_ROWS, face_clip_matrix, face_clip_matrix_reversed
+from envcap.capture.renderer import CubeCapture
+from envcap.capture.sky_sh import sh9_basis, sky_irradiance_sh
+from envcap.gpu import float_depth
+from envcap.scene import load_scene
 from envcap.scene.synthetic import box, quad
 from envcap.scene.model import SceneMesh
 
@@ -26,7 +32,7 @@ class StandInSun:
 
 
 class StandInSky:
-    """Same attributes as envcap.sky.sky.Sky that the capture uses: ``sun`` and ``radiance(dirs)``."""
+    """Same attributes as envcap.sky.Sky that the capture uses: ``sun`` and ``radiance(dirs)``."""
 
     def __init__(self, sun=None, radiance_fn=None, level=(1000.0, 1200.0, 1500.0)):
         self.sun = sun
@@ -301,11 +307,8 @@ def test_face_clip_matrix_maps_texel_centers_to_pixel_centers():
 # -- per-face chunk culling ---------------------------------------------------------------------
 
 def _canyon():
-    from envcap.scene import load_scene
-    from envcap.sky.sky import sky_from_spec
-
     sc = load_scene("canyon")
-    return sc, sky_from_spec(sc.sky, sc.base_dir)
+    return sc, sc.sky.build()
 
 
 def test_culled_capture_equals_drawing_everything_on_canyon(gl_ctx):
@@ -339,8 +342,6 @@ def test_chunk_visibility_never_rejects_a_box_the_frustum_reaches():
     """Reference: exact feasibility (scipy linprog) of {r in box, inside the face frustum}."""
     from scipy.optimize import linprog
 
-    from envcap.capture.renderer import _FACE_ROWS, chunk_face_visibility
-
     rng = np.random.default_rng(7)
     c0 = rng.uniform(-20, 20, (200, 3))
     size = rng.uniform(0.0, 6.0, (200, 3)) * (rng.random((200, 3)) > 0.1)  # some flat boxes
@@ -352,7 +353,7 @@ def test_chunk_visibility_never_rejects_a_box_the_frustum_reaches():
     assert vis.shape == (6, 200) and vis.dtype == bool
     rejected = 0
     for f in range(6):
-        r = _FACE_ROWS[f]
+        r = FACE_ROWS[f]
         a_ub = np.stack([r[0] - r[2], -r[0] - r[2], r[1] - r[2], -r[1] - r[2], -r[2]])  # a r <= b
         b_ub = np.array([0, 0, 0, 0, -near])
         for c in range(200):
@@ -364,8 +365,6 @@ def test_chunk_visibility_never_rejects_a_box_the_frustum_reaches():
 
 
 def test_chunk_visibility_far_plane_and_box_around_probe():
-    from envcap.capture.renderer import chunk_face_visibility
-
     lo = np.array([[-1.0, -1, -1], [50.0, -1, -1]])
     hi = np.array([[1.0, 1, 1], [60.0, 1, 1]])
     vis = chunk_face_visibility(lo, hi, np.zeros(3), near=0.05, far=40.0)
@@ -375,8 +374,6 @@ def test_chunk_visibility_far_plane_and_box_around_probe():
 
 
 def test_chunk_triangles_partition_and_bounds(gl_ctx):
-    from envcap.capture.renderer import chunk_triangles
-
     sc, _ = _canyon()
     m = sc.mesh
     ch = chunk_triangles(m.positions, m.indices, 8.0)
@@ -401,17 +398,15 @@ def test_chunk_triangles_partition_and_bounds(gl_ctx):
 def test_window_1p5cm_in_front_of_its_wall_wins_at_300m(gl_ctx):
     """Float32 reversed depth: a 24-bit standard depth buffer ties these two planes at 300 m
     (resolution ~10 cm there) and would show the wall drawn first."""
-    from envcap.capture.renderer import _DepthGL
-
     d = 300.0
     wall = quad((d + 0.015, -150, -150), (0, 0, 300), (0, 300, 0), emission=(0, 1, 0))   # faces -x
     window = quad((d, -120, -120), (0, 0, 240), (0, 240, 0), emission=(1, 0, 0))        # in front
     mesh = SceneMesh.concatenate([wall, window])  # the wall first: a depth tie keeps the wall
     with CubeCapture(mesh, 64, ctx=gl_ctx, effects={"emissive_windows"}) as cap:
         got = cap.capture([0.0, 0.0, 0.0])
-        gl = _DepthGL()
-        assert gl.get(gl.GL_CLIP_DEPTH_MODE) == 0x935E  # NEGATIVE_ONE_TO_ONE restored
-        assert gl.get(gl.GL_DEPTH_FUNC) != gl.GL_GREATER
+        gl = float_depth.FloatDepthGL()
+        assert gl.get(float_depth.GL_CLIP_DEPTH_MODE) == 0x935E  # NEGATIVE_ONE_TO_ONE restored
+        assert gl.get(float_depth.GL_DEPTH_FUNC) != float_depth.GL_GREATER
     seen = got.rgba[0, ..., 3] > 0
     dirs = cube.texel_directions(64)[0]
     inside = np.all(np.abs(dirs[..., 1:] / dirs[..., :1]) * d < 119.0, axis=-1)  # rays hitting the window
@@ -423,8 +418,6 @@ def test_window_1p5cm_in_front_of_its_wall_wins_at_300m(gl_ctx):
 def test_reversed_face_clip_matrix_depth_and_xy():
     """Hand-derived: z/w = 1 at ma = near, 0 at ma = far (near / ma when far is infinite);
     x, y, w rows equal face_clip_matrix's."""
-    from envcap.capture.renderer import face_clip_matrix_reversed
-
     near, far = 0.05, 400.0
     for f in range(6):
         ma_dir = np.linalg.inv(face_clip_matrix(f)[[0, 1, 3], :3])[:, 2]  # direction with sc = tc = 0

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from envcap.core import cube
-from envcap.gpu.gl import CubeArrayTexture, cube_texture
+from envcap.gpu.cube_array import CubeArrayTexture, cube_texture
 from gl_sampling import SAMPLE_CUBE, SAMPLE_CUBE_ARRAY, sample_with_gl
 
 

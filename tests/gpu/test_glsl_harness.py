@@ -1,4 +1,4 @@
-"""envcap.glsl_harness: inputs and outputs round-trip, split dispatches, clear errors."""
+"""envcap.gpu.glsl_harness: inputs and outputs round-trip, split dispatches, clear errors."""
 
 import numpy as np
 import pytest
