@@ -25,10 +25,6 @@ class MeshBuilder:
         self._albedo: list[NDArray[np.float64]] = []  # (Q, 3)
         self._emission: list[NDArray[np.float64]] = []  # (Q, 3)
 
-    @property
-    def quad_count(self) -> int:
-        return int(sum(c.shape[0] for c in self._corners))
-
     def add_rects(
         self,
         axis: int,
@@ -101,7 +97,8 @@ class MeshBuilder:
             self.add_rects(axis, sign, plane, lo, hi, albedo)
 
     def build(self) -> SceneMesh:
-        """The accumulated quads as a flat-shaded :class:`SceneMesh` (float32, uint32 indices)."""
+        """The accumulated quads as a flat-shaded :class:`SceneMesh` (float32, uint32 indices;
+        positions relative to their :func:`~envcap.scene.model.local_origin`)."""
         if not self._corners:
             return SceneMesh.concatenate([])
         c = np.concatenate(self._corners)
@@ -112,13 +109,7 @@ class MeshBuilder:
         emi = np.repeat(np.concatenate(self._emission), 4, axis=0)
         base = (np.arange(q, dtype=np.uint32) * 4)[:, None]
         idx = np.concatenate([base + np.array([0, 1, 2], np.uint32), base + np.array([0, 2, 3], np.uint32)], axis=1)
-        return SceneMesh(
-            pos.astype(np.float32),
-            nrm.astype(np.float32),
-            alb.astype(np.float32),
-            emi.astype(np.float32),
-            idx.reshape(-1, 3).astype(np.uint32),
-        )
+        return SceneMesh.from_world(pos, nrm, alb, emi, idx.reshape(-1, 3))
 
 
 def subtract_interval(pieces: list[tuple[float, float]], lo: float, hi: float) -> list[tuple[float, float]]:

@@ -23,7 +23,6 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from envcap.scene._spec import Table
 from envcap.scene.geometry import srgb_to_linear
 from envcap.scene.model import SceneMesh
 
@@ -58,7 +57,7 @@ def import_transform(
 
 
 def _load_trimesh(path: Path) -> Any:
-    import trimesh
+    import trimesh  # heavy (~0.8 s): imported only when a mesh is actually read
 
     try:
         m = trimesh.load(str(path), force="mesh", process=False)
@@ -135,24 +134,5 @@ def import_mesh(
         raise ValueError(f"mesh {path} has only degenerate (zero-area) triangles")
     tri, alb, n = tri[keep], alb[keep], n[keep] / length[keep, None]
     t = tri.shape[0]
-    return SceneMesh(
-        positions=tri.reshape(-1, 3).astype(np.float32),
-        normals=np.repeat(n, 3, axis=0).astype(np.float32),
-        albedo=alb.reshape(-1, 3).astype(np.float32),
-        emission=np.zeros((3 * t, 3), np.float32),
-        indices=np.arange(3 * t, dtype=np.uint32).reshape(t, 3),
-    )
-
-
-def import_mesh_spec(t: Table, base_dir: Path | None) -> SceneMesh:
-    """Read a scene's ``[mesh]`` table (keys: file, up_axis, rotation_deg, offset, scale, albedo)."""
-    f = Path(t.string("file"))
-    if not f.is_absolute() and base_dir is not None:
-        f = base_dir / f
-    up = t.string("up_axis", "y", choices=("y", "z"))
-    rot = t.number("rotation_deg", 0.0)
-    off = t.vector("offset", 3, (0.0, 0.0, 0.0))
-    scale = t.number("scale", 1.0, positive=True)
-    albedo = t.vector("albedo", 3, (0.5, 0.5, 0.5), min=0.0, max=1.0, gray=True)
-    t.close()
-    return import_mesh(f, up_axis=up, rotation_deg=rot, offset=off, scale=scale, albedo=albedo)
+    return SceneMesh.from_world(tri.reshape(-1, 3), np.repeat(n, 3, axis=0), alb.reshape(-1, 3),
+                                np.zeros((3 * t, 3)), np.arange(3 * t, dtype=np.uint32).reshape(t, 3))

@@ -6,20 +6,38 @@ World frame: right-handed, meters, +Y up, ground at y = 0.  Streets run along X 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-EFFECTS: tuple[str, ...] = ("sun_light", "sun_shadows", "sky_light", "emissive_windows")
-"""Effects a scene may call for; each is one capture pass that runs only when listed.
+from envcap.capture.effects import check_effects, effect_names
+from envcap.sky.registry import SkySpec
 
-* ``sun_light``: direct light from the sun on surfaces (Lambert), no occlusion.
-* ``sun_shadows``: occlusion of the sun with a shadow map (needs ``sun_light``).
-* ``sky_light``: light from the sky dome on surfaces (diffuse irradiance of the sky).
-* ``emissive_windows``: emission of lit windows (materials with non-zero emission).
+EFFECTS: tuple[str, ...] = effect_names()
+"""Effects a scene may call for: the capture effects registered at import
+(:mod:`envcap.capture.effects`, one module each: ``sun_light``, ``sky_light``, ``sun_shadows``,
+``emissive_windows``); each runs only when listed.  Scenes are checked against the registry
+itself (:func:`envcap.capture.effects.check_effects`), so effects registered later count too.
 """
+
+
+ORIGIN_GRID_M = 1000.0
+"""A mesh's origin is its bounding-box center rounded to a multiple of this (meters, per axis):
+:func:`local_origin`."""
+
+
+def local_origin(lo: NDArray[np.floating], hi: NDArray[np.floating]) -> NDArray[np.float64]:
+    """The origin for geometry spanning the world box ``[lo, hi]`` (3,) meters: the box center
+    rounded to whole multiples of :data:`ORIGIN_GRID_M` per axis, (3,) float64.
+
+    Coordinates relative to it are at most half the box plus ``ORIGIN_GRID_M / 2``, so their
+    float32 steps are those of the geometry's own size, wherever it lies (10^6 m away: ~6 cm in
+    absolute float32, ~0.06 mm relative to this origin for a 1 km scene).  A scene centered
+    within 500 m of the world origin gets (0, 0, 0): its float32 positions are the absolute ones.
+    """
+    c = 0.5 * (np.asarray(lo, np.float64) + np.asarray(hi, np.float64))
+    return np.round(c / ORIGIN_GRID_M) * ORIGIN_GRID_M + 0.0  # + 0.0: no -0.0
 
 
 @dataclass(frozen=True)
@@ -27,10 +45,14 @@ class SceneMesh:
     """Triangle geometry with per-vertex material attributes (all float32 unless noted).
 
     Shapes: ``positions``, ``normals``, ``albedo``, ``emission`` are ``(V, 3)``; ``indices`` is
-    ``(T, 3)`` uint32.  Positions in meters in the envcap world frame.  ``albedo`` is the diffuse
-    reflectance in [0, 1] (linear RGB); ``emission`` is emitted radiance in the sky's units
-    (linear RGB, cd/m^2-scaled, see :mod:`envcap.sky.sky`).  Normals are unit length and face the
-    side that is lit (flat shading: vertices are not shared between faces of different normal).
+    ``(T, 3)`` uint32.  ``positions`` are meters relative to ``origin`` ((3,) float64, world
+    meters; default (0, 0, 0)): a vertex's world position is ``origin + positions`` in float64,
+    so geometry far from the world origin (projected coordinates such as UTM) keeps float32
+    steps of its own size (:func:`local_origin`, ``docs/capture.md``, "Precision").
+    ``albedo`` is the diffuse reflectance in [0, 1] (linear RGB); ``emission`` is emitted
+    radiance in the sky's units (linear RGB, cd/m^2-scaled, see :mod:`envcap.sky.base`).
+    Normals are unit length and face the side that is lit (flat shading: vertices are not shared
+    between faces of different normal).
     """
 
     positions: NDArray[np.float32]
@@ -38,6 +60,7 @@ class SceneMesh:
     albedo: NDArray[np.float32]
     emission: NDArray[np.float32]
     indices: NDArray[np.uint32]
+    origin: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self) -> None:
         v = self.positions.shape[0]
@@ -51,17 +74,57 @@ class SceneMesh:
             raise ValueError(f"SceneMesh.indices must have shape (T, 3), got {self.indices.shape}")
         if self.indices.size and int(self.indices.max()) >= v:
             raise ValueError("SceneMesh.indices refer to vertices that do not exist")
+        origin = np.asarray(self.origin, dtype=np.float64)
+        if origin.shape != (3,) or not np.all(np.isfinite(origin)):
+            raise ValueError(f"SceneMesh.origin must be 3 finite numbers, got {self.origin!r}")
+        object.__setattr__(self, "origin", origin)
+
+    @classmethod
+    def from_world(cls, positions: NDArray[np.floating], normals: NDArray[np.floating],
+                   albedo: NDArray[np.floating], emission: NDArray[np.floating],
+                   indices: NDArray[np.integer]) -> "SceneMesh":
+        """A mesh from float64 world ``positions`` (V, 3): relative to their
+        :func:`local_origin`, subtracted in float64 and rounded to float32 once."""
+        pos = np.asarray(positions, dtype=np.float64)
+        origin = local_origin(pos.min(axis=0), pos.max(axis=0)) if pos.shape[0] else np.zeros(3)
+        return cls((pos - origin).astype(np.float32), np.asarray(normals, np.float32),
+                   np.asarray(albedo, np.float32), np.asarray(emission, np.float32),
+                   np.asarray(indices, np.uint32), origin)
 
     @property
     def triangle_count(self) -> int:
         return int(self.indices.shape[0])
 
+    def world_bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(lo, hi)`` (3,) float64 world meters of the vertices; the origin twice if none."""
+        if not self.positions.shape[0]:
+            return self.origin.copy(), self.origin.copy()
+        return (self.origin + self.positions.min(axis=0).astype(np.float64),
+                self.origin + self.positions.max(axis=0).astype(np.float64))
+
+    def rebased(self, origin: NDArray[np.floating]) -> "SceneMesh":
+        """The same mesh with positions relative to ``origin`` (3,) world meters: shifted in
+        float64, rounded to float32 once (exact when ``origin`` is the mesh's own)."""
+        o = np.asarray(origin, dtype=np.float64)
+        if np.array_equal(o, self.origin):
+            return self
+        pos = (self.positions.astype(np.float64) + (self.origin - o)).astype(np.float32)
+        return SceneMesh(pos, self.normals, self.albedo, self.emission, self.indices, o)
+
     @staticmethod
     def concatenate(parts: list["SceneMesh"]) -> "SceneMesh":
-        """Join meshes into one (indices are offset)."""
+        """Join meshes into one (indices are offset).  Parts that share an origin keep it (and
+        their float32 positions); otherwise every part is rebased to the :func:`local_origin` of
+        their joint world bounds."""
         if not parts:
             z = np.zeros((0, 3), np.float32)
             return SceneMesh(z, z, z, z, np.zeros((0, 3), np.uint32))
+        origin = parts[0].origin
+        if any(not np.array_equal(p.origin, origin) for p in parts[1:]):
+            bounds = [p.world_bounds() for p in parts if p.positions.shape[0]]
+            origin = local_origin(np.min([b[0] for b in bounds], axis=0), np.max([b[1] for b in bounds], axis=0)) \
+                if bounds else np.zeros(3)
+            parts = [p.rebased(origin) for p in parts]
         offs = np.cumsum([0] + [p.positions.shape[0] for p in parts[:-1]])
         return SceneMesh(
             np.concatenate([p.positions for p in parts]).astype(np.float32),
@@ -69,6 +132,7 @@ class SceneMesh:
             np.concatenate([p.albedo for p in parts]).astype(np.float32),
             np.concatenate([p.emission for p in parts]).astype(np.float32),
             np.concatenate([p.indices + np.uint32(o) for p, o in zip(parts, offs)]).astype(np.uint32),
+            origin,
         )
 
 
@@ -131,22 +195,22 @@ class Street:
 class Scene:
     """A city scene: geometry, streets, sky description and the effects it calls for.
 
-    ``sky`` is the scene's ``[sky]`` table as a plain dict, interpreted by
-    :func:`envcap.sky.sky.sky_from_spec`; ``base_dir`` resolves relative file names in it.
+    ``sky`` is the scene's ``[sky]`` table, parsed once at load (:class:`envcap.sky.SkySpec`);
+    ``sky.build()`` makes the :class:`envcap.sky.Sky` (relative file names in it were resolved
+    against the scene file's directory at load).  ``meta`` holds the build counts (buildings,
+    windows, lit windows) and the ``source`` file.
     """
 
     name: str
     mesh: SceneMesh
     streets: list[Street]
-    sky: dict[str, Any]
+    sky: SkySpec
     effects: frozenset[str]
     description: str = ""
-    base_dir: Path | None = None
     meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        unknown = sorted(set(self.effects) - set(EFFECTS))
-        if unknown:
-            raise ValueError(f"scene '{self.name}': unknown effect(s) {unknown}; known: {list(EFFECTS)}")
-        if "sun_shadows" in self.effects and "sun_light" not in self.effects:
-            raise ValueError(f"scene '{self.name}': effect 'sun_shadows' needs 'sun_light'")
+        try:
+            check_effects(self.effects)
+        except ValueError as exc:
+            raise ValueError(f"scene '{self.name}': {exc}") from None

@@ -1,7 +1,7 @@
 """Quick look at a scene's geometry: a top-down and a street-level view rendered with moderngl.
 
 For eyes only (not a capture): Lambert with a fixed light plus emission, tone mapped, 8-bit PNG.
-Shaders: ``shaders/scene_preview_vert.glsl`` / ``shaders/scene_preview_frag.glsl``.
+Shaders: ``shaders/preview/scene_preview_vert.glsl`` / ``shaders/preview/scene_preview_frag.glsl``.
 """
 
 from __future__ import annotations
@@ -11,9 +11,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from PIL import Image
 
-from envcap.core.atomic import atomic_output_file
 from envcap.core.resources import shader_source
+from envcap.outputs import atomic_output_file
 from envcap.scene.model import Scene, Street
 
 
@@ -66,7 +67,7 @@ def top_view_matrix(scene: Scene, margin: float = 20.0) -> tuple[NDArray[np.floa
                 p[a], p[c] = al, cr
                 pts.append(p)
     if not pts:
-        pts = [scene.mesh.positions.min(0), scene.mesh.positions.max(0)]
+        pts = list(scene.mesh.world_bounds())
     pts = np.array(pts)
     x0, z0 = pts.min(0)[[0, 2]] - margin
     x1, z1 = pts.max(0)[[0, 2]] + margin
@@ -80,12 +81,14 @@ def render(ctx: Any, scene: Scene, mvp: NDArray[np.float64], size: tuple[int, in
     """Render ``scene`` with the 4x4 ``mvp`` (column vectors) into an (H, W, 3) uint8 image."""
     w, h = size
     m = scene.mesh
-    prog = ctx.program(vertex_shader=shader_source("scene_preview_vert.glsl"), fragment_shader=shader_source("scene_preview_frag.glsl"))
+    prog = ctx.program(vertex_shader=shader_source("preview/scene_preview_vert.glsl"), fragment_shader=shader_source("preview/scene_preview_frag.glsl"))
     data = np.concatenate([m.positions, m.normals, m.albedo, m.emission], axis=1).astype("f4")
     vbo = ctx.buffer(data.tobytes())
     ibo = ctx.buffer(m.indices.astype("u4").tobytes())
     vao = ctx.vertex_array(prog, [(vbo, "3f 3f 3f 3f", "in_pos", "in_normal", "in_albedo", "in_emission")], ibo)
-    prog["mvp"].write(mvp.T.astype("f4").tobytes())
+    to_world = np.eye(4)
+    to_world[:3, 3] = m.origin  # mesh positions are relative to m.origin (float64, folded in here)
+    prog["mvp"].write((mvp @ to_world).T.astype("f4").tobytes())
     light = np.array([0.4, 0.8, 0.3])
     prog["light_dir"].value = tuple(light / np.linalg.norm(light))
     color = ctx.renderbuffer((w, h), 4, samples=0)
@@ -103,8 +106,6 @@ def render(ctx: Any, scene: Scene, mvp: NDArray[np.float64], size: tuple[int, in
 
 def save_previews(ctx: Any, scene: Scene, path: str | Path, width: int = 640) -> Path:
     """Write one PNG: the first street's street-level view above a top-down view of the streets."""
-    from PIL import Image
-
     top, aspect = top_view_matrix(scene)
     th = int(min(max(round(width / max(aspect, 1e-3)), 160), 640))
     parts = []

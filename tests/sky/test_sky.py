@@ -12,7 +12,7 @@ from gl_sampling import SAMPLE_CUBE, sample_with_gl
 
 from envcap.core import cube
 from envcap.core.latlong import latlong_directions, latlong_solid_angles
-from envcap.sky.sky import (PreethamSky, Sun, UniformSky, direction_from_angles, preetham_sun, sky_from_spec,
+from envcap.sky import (PreethamSky, Sun, UniformSky, direction_from_angles, preetham_sun, sky_from_spec,
                         splat_sun)
 
 # sRGB / Rec.709 (D65) linear RGB -> XYZ, IEC 61966-2-1 (the inverse of the module's XYZ -> RGB).
@@ -272,7 +272,7 @@ def test_latlong_sky_file_with_nan_rejected_with_clear_message(tmp_path):
 def test_sky_cube_uploads_as_is_and_gl_returns_the_sun_unclipped(gl_ctx):
     # The GL sampler as reference: the float32 cube (with a sun ~1e9 cd/m^2) uploaded as-is returns, with
     # nearest filtering, the splatted sun texel at the sun direction and the sky at the zenith.
-    from envcap.gpu.gl import cube_texture
+    from envcap.gpu.cube_array import cube_texture
 
     sky = PreethamSky(3, 35, 120)
     n = 32

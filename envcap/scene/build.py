@@ -1,0 +1,278 @@
+""":class:`~envcap.scene.spec.SceneSpec` -> :class:`~envcap.scene.model.Scene`: buildings, windows,
+walls, the ground and imported meshes as one flat-shaded mesh.
+
+Placement rules and the exact geometry are documented in ``docs/scenes.md``.  World frame:
+right-handed, meters, +Y up, ground at y = 0; streets run along X or Z.  Random rows draw from
+``numpy.random.default_rng([side seed, street index, side index])``, so a scene is reproducible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from envcap.scene.geometry import MeshBuilder, subtract_interval
+from envcap.scene.mesh_import import import_mesh
+from envcap.scene.model import Scene, SceneMesh
+from envcap.scene.spec import (
+    BuildingSpec,
+    GroundSpec,
+    RandomBuildingsSpec,
+    SceneSpec,
+    SideSpec,
+    StreetSpec,
+    WallSpec,
+    WindowsSpec,
+)
+
+MIN_PIECE = 0.5
+"""Building pieces narrower than this (m, along the street) after clipping are dropped."""
+
+
+def build_scene(spec: SceneSpec) -> Scene:
+    """Build the scene's geometry; ``meta`` counts buildings, windows and lit windows."""
+    builder = MeshBuilder()
+    parts: list[SceneMesh] = []
+    stats = {"buildings": 0, "windows": 0, "lit_windows": 0}
+    placed: list[_Footprint] = []
+    for si, s in enumerate(spec.streets):
+        for side_index, side in enumerate((s.side_min, s.side_max)):
+            if side is None:
+                continue
+            _build_side(builder, s, side, side_index, si, spec.streets, placed, stats)
+
+    if spec.mesh is not None:
+        m = spec.mesh
+        parts.append(import_mesh(m.path, up_axis=m.up_axis, rotation_deg=m.rotation_deg, offset=m.offset,
+                                 scale=m.scale, albedo=m.albedo))
+
+    if spec.ground is not None:
+        _build_ground(builder, spec.ground, spec.streets, parts)
+    mesh = SceneMesh.concatenate([builder.build(), *parts]) if parts else builder.build()
+    return Scene(
+        name=spec.name,
+        mesh=mesh,
+        streets=[s.street for s in spec.streets],
+        sky=spec.sky,
+        effects=spec.effects,
+        description=spec.description,
+        meta=dict(stats, source=spec.source),
+    )
+
+
+@dataclass
+class _Footprint:
+    """A placed building's rectangle on the ground: along-axis [a0, a1], cross-axis [c0, c1] (m)."""
+
+    along_axis: int
+    a0: float
+    a1: float
+    c0: float
+    c1: float
+
+
+@dataclass
+class _Building:
+    """A building of a row before clipping: along-street extent [a0, a1] (m) and its sizes."""
+
+    a0: float
+    a1: float
+    height: float
+    depth: float
+    setback: float
+    albedo: tuple[float, ...]
+    windows: bool
+
+
+def _listed_buildings(s: StreetSpec, side: SideSpec, listed: tuple[BuildingSpec, ...]) -> list[_Building]:
+    """An explicit list: each building ``gap`` after the previous one, from the side's start."""
+    pos = s.street.start + side.start_offset
+    out: list[_Building] = []
+    for b in listed:
+        pos += b.gap
+        out.append(_Building(pos, pos + b.width, b.height, b.depth, b.setback, b.albedo, b.windows))
+        pos += b.width
+    return out
+
+
+def _random_buildings(s: StreetSpec, side: SideSpec, r: RandomBuildingsSpec, rng: np.random.Generator) -> list[_Building]:
+    """A random row from the side's start until ``count`` buildings or the street's end."""
+    st = s.street
+    pos = st.start + side.start_offset
+    out: list[_Building] = []
+    while r.count is None or len(out) < r.count:
+        if r.gap_probability > 0 and rng.random() < r.gap_probability:
+            pos += rng.uniform(*r.gap_width)
+        w = rng.uniform(*r.width)
+        if pos + w > st.end:
+            w = st.end - pos
+            if w < r.width[0]:
+                break
+        jit = side.facade.albedo_jitter
+        alb = tuple(np.clip(np.asarray(side.facade.albedo) * rng.uniform(1 - jit, 1 + jit), 0.0, 1.0)) if jit else side.facade.albedo
+        out.append(_Building(pos, pos + w, rng.uniform(*r.height), rng.uniform(*r.depth), rng.uniform(*r.setback), alb, True))
+        pos += w
+    return out
+
+
+def _clip(fp: _Footprint, streets: tuple[StreetSpec, ...], placed: list[_Footprint]) -> list[tuple[float, float]]:
+    """Along-street pieces of a footprint that stay out of every roadway and every placed building."""
+    a, c = fp.along_axis, 2 - fp.along_axis
+    rects = []
+    for s in streets:
+        st = s.street
+        lo, hi = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+        lo[st.along_index], hi[st.along_index] = st.start, st.end
+        lo[st.cross_index], hi[st.cross_index] = st.facade_min, st.facade_max
+        rects.append((lo[a], hi[a], lo[c], hi[c]))
+    for p in placed:
+        lo, hi = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+        pc = 2 - p.along_axis
+        lo[p.along_axis], hi[p.along_axis] = p.a0, p.a1
+        lo[pc], hi[pc] = p.c0, p.c1
+        rects.append((lo[a], hi[a], lo[c], hi[c]))
+    pieces = [(fp.a0, fp.a1)]
+    eps = 1e-6
+    for ra0, ra1, rc0, rc1 in rects:
+        if rc1 <= fp.c0 + eps or rc0 >= fp.c1 - eps:
+            continue
+        pieces = subtract_interval(pieces, ra0, ra1)
+    return [(x0, x1) for x0, x1 in pieces if x1 - x0 >= MIN_PIECE]
+
+
+def _build_side(builder: MeshBuilder, s: StreetSpec, side: SideSpec, side_index: int, street_index: int,
+                streets: tuple[StreetSpec, ...], placed: list[_Footprint], stats: dict[str, int]) -> None:
+    st = s.street
+    a, c = st.along_index, st.cross_index
+    sign = 1 if side_index == 0 else -1  # front-face normal along the cross axis (toward the street)
+    plane = st.facade_min if side_index == 0 else st.facade_max
+    rng = np.random.default_rng([side.seed, street_index, side_index])
+    if side.layout is None:
+        return
+    if isinstance(side.layout, WallSpec):
+        _build_wall(builder, s, side, side.layout, side_index)
+        return
+    if isinstance(side.layout, tuple):
+        buildings = _listed_buildings(s, side, side.layout)
+    else:
+        buildings = _random_buildings(s, side, side.layout, rng)
+    for b in buildings:
+        front = plane - sign * b.setback
+        back = front - sign * b.depth
+        fp = _Footprint(a, b.a0, b.a1, min(front, back), max(front, back))
+        for a0, a1 in _clip(fp, streets, placed):
+            piece = _Footprint(a, a0, a1, fp.c0, fp.c1)
+            placed.append(piece)
+            lo, hi = np.zeros(3), np.zeros(3)
+            lo[a], hi[a], lo[c], hi[c], hi[1] = a0, a1, fp.c0, fp.c1, b.height
+            builder.add_boxes(lo, hi, b.albedo)
+            stats["buildings"] += 1
+            if b.windows and side.facade.windows is not None:
+                _add_windows(builder, side.facade.windows, a, c, sign, front, a0, a1, b.height, rng, stats)
+
+
+def _add_windows(builder: MeshBuilder, w: WindowsSpec, a: int, c: int, sign: int, front: float,
+                 a0: float, a1: float, height: float, rng: np.random.Generator, stats: dict[str, int]) -> None:
+    ncol = int(np.floor((a1 - a0) / w.spacing + 1e-9))
+    floors = []
+    f = w.first_floor
+    while f * w.floor_height + w.sill + w.height + w.frame + w.top_margin <= height + 1e-9:
+        floors.append(f)
+        f += 1
+    if ncol == 0 or not floors:
+        return
+    margin = 0.5 * ((a1 - a0) - ncol * w.spacing)
+    cx = a0 + margin + w.spacing * (np.arange(ncol) + 0.5)
+    y0 = np.asarray(floors, np.float64) * w.floor_height + w.sill
+    cx, y0 = (x.ravel() for x in np.meshgrid(cx, y0))
+    n = cx.size
+    lo, hi = np.zeros((n, 3)), np.zeros((n, 3))
+    lo[:, a], hi[:, a] = cx - 0.5 * w.width, cx + 0.5 * w.width
+    lo[:, 1], hi[:, 1] = y0, y0 + w.height
+    lit = rng.random(n) < w.emissive_fraction
+    emission = np.where(lit[:, None], np.asarray(w.emission)[None, :], 0.0)
+    glass = front + sign * w.offset
+    builder.add_rects(c, sign, glass, lo, hi, w.albedo, emission)
+    stats["windows"] += n
+    stats["lit_windows"] += int(lit.sum())
+    if w.frame > 0:  # four strips around the glass, in the glass plane, not overlapping it
+        f = w.frame
+        x0, x1, g0, g1 = lo[:, a], hi[:, a], lo[:, 1], hi[:, 1]
+        strips = (
+            (x0 - f, x1 + f, g0 - f, g0),  # bottom (sill)
+            (x0 - f, x1 + f, g1, g1 + f),  # top
+            (x0 - f, x0, g0, g1),  # left
+            (x1, x1 + f, g0, g1),  # right
+        )
+        for sx0, sx1, sy0, sy1 in strips:
+            flo, fhi = np.zeros((n, 3)), np.zeros((n, 3))
+            flo[:, a], fhi[:, a], flo[:, 1], fhi[:, 1] = sx0, sx1, sy0, sy1
+            builder.add_rects(c, sign, glass, flo, fhi, w.frame_albedo)
+
+
+def _build_wall(builder: MeshBuilder, s: StreetSpec, side: SideSpec, wall: WallSpec, side_index: int) -> None:
+    """A continuous checkered facade exactly on the nominal plane, closed by a thin box behind."""
+    st = s.street
+    a, c = st.along_index, st.cross_index
+    sign = 1 if side_index == 0 else -1
+    plane = st.facade_min if side_index == 0 else st.facade_max
+    a_edges = _tile_edges(st.start + side.start_offset, st.end, wall.tile)
+    y_edges = _tile_edges(0.0, wall.height, wall.tile)
+    ia, iy = np.meshgrid(np.arange(a_edges.size - 1), np.arange(y_edges.size - 1))
+    ia, iy = ia.ravel(), iy.ravel()
+    lo, hi = np.zeros((ia.size, 3)), np.zeros((ia.size, 3))
+    lo[:, a], hi[:, a] = a_edges[ia], a_edges[ia + 1]
+    lo[:, 1], hi[:, 1] = y_edges[iy], y_edges[iy + 1]
+    alb = np.where(((ia + iy) % 2 == 0)[:, None], np.asarray(wall.albedo)[None], np.asarray(wall.albedo2)[None])
+    builder.add_rects(c, sign, plane, lo, hi, alb)
+    blo, bhi = np.zeros(3), np.zeros(3)
+    blo[a], bhi[a] = a_edges[0], a_edges[-1]
+    blo[c], bhi[c] = sorted((plane, plane - sign * wall.thickness))
+    bhi[1] = wall.height
+    faces = ["+y", "+x", "-x", "+z", "-z"]
+    faces.remove(("+" if sign > 0 else "-") + "xyz"[c])  # the front is the checker
+    builder.add_boxes(blo, bhi, wall.albedo, faces=tuple(faces))
+
+
+def _tile_edges(lo: float, hi: float, tile: float) -> np.ndarray:
+    n = max(1, int(np.ceil((hi - lo) / tile - 1e-9)))
+    if n > 100_000:
+        raise ValueError(f"tile size {tile} m gives {n} tiles; use a larger tile")
+    e = lo + tile * np.arange(n + 1, dtype=np.float64)
+    e[-1] = hi
+    return e
+
+
+def _build_ground(builder: MeshBuilder, g: GroundSpec, streets: tuple[StreetSpec, ...], parts: list[SceneMesh]) -> None:
+    if g.center is None:
+        pts = []
+        for s in streets:
+            st = s.street
+            p0, p1 = np.zeros(3), np.zeros(3)
+            p0[st.along_index], p1[st.along_index] = st.start, st.end
+            p0[st.cross_index], p1[st.cross_index] = st.facade_min, st.facade_max
+            pts += [p0, p1]
+        for m in parts:
+            if m.positions.size:
+                pts += list(m.world_bounds())
+        bb = np.array(pts) if pts else np.zeros((1, 3))
+        cx, cz = 0.5 * (bb.min(0) + bb.max(0))[[0, 2]]
+    else:
+        cx, cz = g.center
+    h = 0.5 * g.extent
+    if g.checker <= 0:
+        builder.add_rects(1, 1, 0.0, (cx - h, 0, cz - h), (cx + h, 0, cz + h), g.albedo)
+        return
+    hc = 0.5 * min(g.checker_extent, g.extent)
+    ex = _tile_edges(cx - hc, cx + hc, g.checker)
+    ez = _tile_edges(cz - hc, cz + hc, g.checker)
+    ix, iz = (v.ravel() for v in np.meshgrid(np.arange(ex.size - 1), np.arange(ez.size - 1)))
+    lo, hi = np.zeros((ix.size, 3)), np.zeros((ix.size, 3))
+    lo[:, 0], hi[:, 0], lo[:, 2], hi[:, 2] = ex[ix], ex[ix + 1], ez[iz], ez[iz + 1]
+    alb = np.where(((ix + iz) % 2 == 0)[:, None], np.asarray(g.albedo)[None], np.asarray(g.albedo2)[None])
+    builder.add_rects(1, 1, 0.0, lo, hi, alb)
+    if hc < h:  # a ring of four plain quads out to the full extent
+        ring_lo = [(cx - h, 0, cz - h), (cx - h, 0, cz + hc), (cx - h, 0, cz - hc), (cx + hc, 0, cz - hc)]
+        ring_hi = [(cx + h, 0, cz - hc), (cx + h, 0, cz + h), (cx - hc, 0, cz + hc), (cx + h, 0, cz + hc)]
+        builder.add_rects(1, 1, 0.0, ring_lo, ring_hi, g.albedo)

@@ -1,0 +1,265 @@
+"""Scene TOML -> :class:`~envcap.scene.spec.SceneSpec`: every key read, checked and typed once.
+
+Errors raise ``ValueError`` naming the key (``streets[1].side_min.random: unknown key(s) ...``);
+unknown keys are errors.  The format is documented in ``docs/scenes.md``.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from envcap.capture.effects import check_effects
+from envcap.scene.model import Street
+from envcap.scene.spec import (
+    BuildingSpec,
+    FacadeSpec,
+    GroundSpec,
+    Layout,
+    MeshSpec,
+    RandomBuildingsSpec,
+    SceneSpec,
+    SideSpec,
+    StreetSpec,
+    WallSpec,
+    WindowsSpec,
+)
+from envcap.scene.table import Table
+from envcap.sky.registry import SkySpec, parse_sky_spec
+
+DEFAULT_GROUND_EXTENT = 1000.0
+"""Default side length (m) of the square ground quad."""
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """The TOML document at ``path`` as a dict; ``ValueError`` naming the file (and line) if invalid."""
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:  # message carries "(at line L, column C)"
+        raise ValueError(f"{path}: invalid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a UTF-8 text file ({exc})") from None
+
+
+def parse_scene(data: dict[str, Any], base_dir: Path | None = None, default_name: str = "scene",
+                source: str = "") -> SceneSpec:
+    """Check a scene document (the TOML as a dict) and type it.
+
+    ``base_dir`` resolves relative file names (``[mesh] file``, ``[sky] file``); the sky is built
+    once here so that a missing or bad sky file is reported at load.
+    """
+    top = Table(data, "")
+    name = top.string("name", default_name)
+    description = top.string("description", "")
+    effects = _parse_effects(top.raw("effects"))
+    sky = _parse_sky(top.raw("sky"), base_dir)
+    mesh_table = top.sub("mesh")
+    street_tables = top.tables("streets")
+    ground_table = top.sub("ground")
+    top.close()
+
+    streets = tuple(_parse_street(t, i) for i, t in enumerate(street_tables))
+    names = [s.street.name for s in streets]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"street names must be unique, repeated: {dup}")
+    mesh = None if mesh_table is None else _parse_mesh(mesh_table, base_dir)
+    if not streets and mesh is None:
+        raise ValueError("a scene needs at least one [[streets]] or a [mesh]")
+    return SceneSpec(name=name, description=" ".join(description.split()), effects=effects, sky=sky,
+                     streets=streets, mesh=mesh, ground=_parse_ground(ground_table), source=source)
+
+
+def _parse_effects(v: Any) -> frozenset[str]:
+    if not isinstance(v, list) or not all(isinstance(e, str) for e in v):
+        raise ValueError(f"effects: expected a list of names, got {v!r}")
+    try:
+        return check_effects(v)
+    except ValueError as exc:
+        raise ValueError(f"effects: {exc}") from None
+
+
+def _parse_sky(v: Any, base_dir: Path | None) -> SkySpec:
+    """The ``[sky]`` table through the sky registry, built once to check its files."""
+    Table(v, "sky")  # a table, not a string or a number
+    spec = parse_sky_spec(dict(v), base_dir)
+    spec.build()
+    return spec
+
+
+def _parse_mesh(t: Table, base_dir: Path | None) -> MeshSpec:
+    """A scene's ``[mesh]`` table (keys: file, up_axis, rotation_deg, offset, scale, albedo)."""
+    f = Path(t.string("file"))
+    if not f.is_absolute() and base_dir is not None:
+        f = base_dir / f
+    spec = MeshSpec(
+        path=f,
+        up_axis=t.string("up_axis", "y", choices=("y", "z")),
+        rotation_deg=t.number("rotation_deg", 0.0),
+        offset=t.vector("offset", 3, (0.0, 0.0, 0.0)),
+        scale=t.number("scale", 1.0, positive=True),
+        albedo=t.vector("albedo", 3, (0.5, 0.5, 0.5), min=0.0, max=1.0, gray=True),
+    )
+    t.close()
+    return spec
+
+
+def _parse_windows(t: Table) -> WindowsSpec:
+    w = WindowsSpec(
+        width=t.number("width", 1.2, positive=True),
+        height=t.number("height", 1.6, positive=True),
+        spacing=t.number("spacing", 3.0, positive=True),
+        floor_height=t.number("floor_height", 3.2, positive=True),
+        sill=t.number("sill", 0.9, min=0.0),
+        first_floor=t.integer("first_floor", 0, min=0),
+        top_margin=t.number("top_margin", 0.5, min=0.0),
+        albedo=t.vector("albedo", 3, (0.04, 0.05, 0.06), min=0.0, max=1.0, gray=True),
+        frame=t.number("frame", 0.0, min=0.0),
+        frame_albedo=t.vector("frame_albedo", 3, (0.6, 0.6, 0.6), min=0.0, max=1.0, gray=True),
+        offset=t.number("offset", 0.015, positive=True, max=0.5),
+        emissive_fraction=t.number("emissive_fraction", 0.0, min=0.0, max=1.0),
+        emission=t.vector("emission", 3, (0.0, 0.0, 0.0), min=0.0),
+    )
+    t.close()
+    if w.width + 2 * w.frame >= w.spacing:
+        raise ValueError(f"{t.where}: width + 2*frame ({w.width + 2 * w.frame}) must be smaller than spacing ({w.spacing})")
+    if w.sill < w.frame or w.sill + w.height + w.frame >= w.floor_height:
+        raise ValueError(f"{t.where}: a window (sill {w.sill} + height {w.height} + frame {w.frame}) must fit in one floor ({w.floor_height})")
+    return w
+
+
+def _merge(a: dict[str, Any] | None, b: dict[str, Any] | None) -> dict[str, Any]:
+    """A side's facade table over the street's: keys of ``b`` win, ``windows`` tables merge key by key."""
+    out = dict(a or {})
+    for k, v in (b or {}).items():
+        if k == "windows" and isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k] = {**out[k], **v}
+        else:
+            out[k] = v
+    return out
+
+
+def _parse_facade(data: dict[str, Any], where: str) -> FacadeSpec:
+    t = Table(data, where)
+    albedo = t.vector("albedo", 3, (0.35, 0.33, 0.3), min=0.0, max=1.0, gray=True)
+    jitter = t.number("albedo_jitter", 0.0, min=0.0, max=1.0)
+    wt = t.sub("windows")
+    t.close()
+    return FacadeSpec(albedo, jitter, _parse_windows(wt) if wt is not None else None)
+
+
+def _parse_street(t: Table, index: int) -> StreetSpec:
+    name = t.string("name", f"street{index}")
+    axis = t.string("axis", choices=("x", "z"))
+    if t.has("start") or t.has("end"):
+        if t.has("length") or t.has("along_center"):
+            raise ValueError(f"{t.where}: give either start/end or along_center/length, not both")
+        start, end = t.number("start"), t.number("end")
+    else:
+        length = t.number("length", positive=True)
+        mid = t.number("along_center", 0.0)
+        start, end = mid - 0.5 * length, mid + 0.5 * length
+    if not end > start:
+        raise ValueError(f"{t.where}: end ({end}) must be larger than start ({start})")
+    width = t.number("width", positive=True)
+    cross = t.number("cross", 0.0)
+    probe_line = t.raw("probe_line", None)
+    if probe_line is not None:
+        probe_line = t.number("probe_line", min=cross - 0.5 * width, max=cross + 0.5 * width)
+    facade_raw = t.raw("facade", {})
+    street_facade = _parse_facade(facade_raw, f"{t.where}.facade")  # validates the street's own table
+    sides = []
+    for key in ("side_min", "side_max"):
+        st = t.sub(key)
+        sides.append(None if st is None else _parse_side(st, facade_raw, street_facade))
+    t.close()
+    street = Street(name=name, axis=axis, start=start, end=end, facade_min=cross - 0.5 * width,
+                    facade_max=cross + 0.5 * width, ground=0.0, center=probe_line)
+    return StreetSpec(street, sides[0], sides[1])
+
+
+def _parse_side(t: Table, street_facade_raw: dict[str, Any], street_facade: FacadeSpec) -> SideSpec:
+    seed = t.integer("seed", 0)
+    start_offset = t.number("start_offset", 0.0, min=0.0)
+    side_facade_raw = t.raw("facade", None)
+    facade = street_facade
+    if side_facade_raw is not None:
+        Table(side_facade_raw, f"{t.where}.facade")  # type check
+        facade = _parse_facade(_merge(street_facade_raw, side_facade_raw), f"{t.where}.facade")
+    present = [k for k in ("random", "buildings", "wall") if t.has(k)]
+    if len(present) > 1:
+        raise ValueError(f"{t.where}: give only one of 'random', 'buildings', 'wall' (got {present})")
+    layout_table: Table | list[Table] | None = None
+    if present == ["random"]:
+        layout_table = t.sub("random")
+    elif present == ["buildings"]:
+        layout_table = t.tables("buildings")
+    elif present == ["wall"]:
+        layout_table = t.sub("wall")
+    t.close()
+    layout: Layout = None
+    if present == ["random"]:
+        layout = _parse_random(layout_table)
+    elif present == ["buildings"]:
+        layout = tuple(_parse_building(b, facade) for b in layout_table)
+    elif present == ["wall"]:
+        layout = _parse_wall(layout_table, facade)
+    return SideSpec(seed, start_offset, facade, layout)
+
+
+def _parse_building(b: Table, facade: FacadeSpec) -> BuildingSpec:
+    spec = BuildingSpec(
+        gap=b.number("gap", 0.0, min=0.0),
+        width=b.number("width", positive=True),
+        albedo=b.vector("albedo", 3, facade.albedo, min=0.0, max=1.0, gray=True),
+        height=b.number("height", positive=True),
+        depth=b.number("depth", 12.0, positive=True),
+        setback=b.number("setback", 0.0, min=0.0),
+        windows=b.boolean("windows", True),
+    )
+    b.close()
+    return spec
+
+
+def _parse_random(r: Table) -> RandomBuildingsSpec:
+    spec = RandomBuildingsSpec(
+        count=r.integer("count", -1, min=0) if r.has("count") else None,
+        width=r.range("width", positive=True),
+        height=r.range("height", positive=True),
+        depth=r.range("depth", (10.0, 15.0), positive=True),
+        setback=r.range("setback", (0.0, 0.0), min=0.0),
+        gap_probability=r.number("gap_probability", 0.0, min=0.0, max=1.0),
+        gap_width=r.range("gap_width", (2.0, 6.0), positive=True),
+    )
+    r.close()
+    return spec
+
+
+def _parse_wall(t: Table, facade: FacadeSpec) -> WallSpec:
+    spec = WallSpec(
+        height=t.number("height", positive=True),
+        tile=t.number("tile", 2.0, positive=True),
+        albedo=t.vector("albedo", 3, facade.albedo, min=0.0, max=1.0, gray=True),
+        albedo2=t.vector("albedo2", 3, (0.1, 0.1, 0.1), min=0.0, max=1.0, gray=True),
+        thickness=t.number("thickness", 0.5, positive=True),
+    )
+    t.close()
+    return spec
+
+
+def _parse_ground(t: Table | None) -> GroundSpec | None:
+    """The ``[ground]`` table (absent: all defaults); ``None`` when ``enabled = false``."""
+    spec = t if t is not None else Table({}, "ground")
+    if not spec.boolean("enabled", True):
+        spec.close()
+        return None
+    albedo = spec.vector("albedo", 3, (0.18, 0.18, 0.18), min=0.0, max=1.0, gray=True)
+    extent = spec.number("extent", DEFAULT_GROUND_EXTENT, positive=True)
+    center = spec.vector("center", 2, None) if spec.has("center") else None
+    checker = spec.number("checker", 0.0, min=0.0)
+    albedo2 = spec.vector("albedo2", 3, (0.08, 0.08, 0.08), min=0.0, max=1.0, gray=True)
+    checker_extent = spec.number("checker_extent", min(extent, 200.0), positive=True)
+    spec.close()
+    return GroundSpec(albedo, extent, center, checker, albedo2, checker_extent)
