@@ -1,4 +1,6 @@
-"""Shared fixtures: one headless OpenGL context (Mesa llvmpipe through EGL) per test session."""
+"""Shared fixtures: one headless OpenGL context (Mesa llvmpipe through EGL) per test session, and
+one small probe set baked per session for the tests that need a real bake but not particular
+settings (``canyon_probe_set``)."""
 
 import os
 
@@ -9,11 +11,22 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 @pytest.fixture(scope="session")
 def gl_ctx():
-    from envcap.gpu.gl import create_context
+    from envcap.gpu.context import create_context
 
     ctx = create_context()
     yield ctx
     ctx.release()
+
+
+@pytest.fixture(scope="session")
+def canyon_probe_set(gl_ctx):
+    """The bundled canyon baked once per session: 6 probes of 6 x 8^2 texels every 100 m, 4 filtered
+    levels, the sun in the manifest (not in the sky); ~1 s.  Shared: read it, do not modify it."""
+    # Imported here, not at the top: collecting any test must not depend on the whole pipeline importing.
+    from envcap.probeset.bake import bake_probe_set
+    from envcap.scene import load_scene
+
+    return bake_probe_set(load_scene("canyon"), resolution=8, spacing=100.0, ctx=gl_ctx, progress=False)
 
 
 @pytest.fixture(autouse=True)

@@ -5,8 +5,8 @@ from __future__ import annotations
 from envcap.runtime import synthetic_street as ss
 from envcap.core.resources import shader_source
 
-DECL = shader_source("envcap_street_uniforms.glsl")
-ARGS = "along_s, pos, planes, count, along, xk, nlevels"
+DECL = shader_source("runtime/envcap_street_uniforms.glsl")
+ARGS = "envcap_street"
 
 
 def probe_set(n=32, count=3, along=0, planes=(-6.0, 6.0, 0.0), start=0.0, end=20.0):

@@ -6,8 +6,8 @@ in vec2 uv;
 out vec4 color;
 layout(binding = 3) uniform samplerCubeArray probes;
 layout(binding = 4) uniform samplerCube sky;
-#include "envcap_runtime.glsl"
-#include "envcap_street_uniforms.glsl"
+#include "runtime/envcap_runtime.glsl"
+#include "runtime/envcap_street_uniforms.glsl"
 uniform vec3 eye;
 uniform vec3 center;     // sphere center (m)
 uniform float radius;    // sphere radius (m)
@@ -27,13 +27,11 @@ vec3 shade(vec3 x, vec3 T, vec3 B, vec3 N, vec3 v, bool metal) {
         n = 1;
     }
 #if PARALLAX
-    return envcap_shade_lafortune(probes, sky, x, T, B, N, v, rho_d, C, rs, n,
-                                  along_s, pos, planes, count, along, xk, nlevels);
+    return envcap_shade_lafortune(probes, sky, x, T, B, N, v, rho_d, C, rs, n, envcap_street);
 #else
     // no parallax: every lookup from the probe itself (x = probe position), plain directions
-    int i = envcap_nearest_probe(x[along], along_s, count);
-    return envcap_shade_lafortune(probes, sky, pos[i].xyz, T, B, N, v, rho_d, C, rs, n,
-                                  along_s, pos, planes, count, along, xk, nlevels);
+    int i = envcap_nearest_probe(x[envcap_street.along], envcap_street.along_s, envcap_street.count);
+    return envcap_shade_lafortune(probes, sky, envcap_street.pos[i].xyz, T, B, N, v, rho_d, C, rs, n, envcap_street);
 #endif
 }
 
@@ -47,7 +45,7 @@ void main() {
     vec3 oc = eye - center;
     float b = dot(oc, ray), c = dot(oc, oc) - radius * radius, h = b * b - c;
     if (h < 0.0) {   // background: the environment seen from the eye (sharpest level)
-        color = vec4(envcap_sample_nearest(probes, sky, eye, ray, 1e9, along_s, pos, planes, count, along, xk, nlevels), 1);
+        color = vec4(envcap_sample_nearest(probes, sky, eye, ray, 1e9, envcap_street), 1);
         return;
     }
     float t = -b - sqrt(h);

@@ -7,6 +7,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from envcap.capture.renderer import CubeCapture
+from envcap.scene import load_scene
+
 
 def real_inputs(n: int, ctx: Any = None, scene_name: str = "canyon",
                 position: tuple[float, float, float] = (0.0, 2.0, 0.0)) -> dict[str, NDArray[np.float64]]:
@@ -16,12 +19,8 @@ def real_inputs(n: int, ctx: Any = None, scene_name: str = "canyon",
     alpha 0 where sky shows) composited over that scene's sky *with* its sun (what a runtime
     lookup sees); ``sky_sun``: the scene's Preetham sky with its sun splatted in (alpha 1).
     """
-    from envcap.capture.renderer import CubeCapture
-    from envcap.scene import load_scene
-    from envcap.sky.sky import sky_from_spec
-
     scene = load_scene(scene_name)
-    sky = sky_from_spec(scene.sky, scene.base_dir)
+    sky = scene.sky.build()
     rgb = np.asarray(sky.cube(n), np.float64)
     sky_rgba = np.concatenate([rgb, np.ones(rgb.shape[:-1] + (1,))], -1)
     cap = CubeCapture.from_scene(scene, n, sky=sky, ctx=ctx)

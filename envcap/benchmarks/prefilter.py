@@ -9,12 +9,13 @@ import time
 
 import numpy as np
 
+from envcap.benchmarks.inputs import real_inputs
 from envcap.core import cube as cm
-from envcap.core.atomic import atomic_output_dir
+from envcap.core.color import luminance
 from envcap.core.lobes import lobe_ladder
-from envcap.prefilter.filters import convolve_exact_dirs, omega_box_pyramid, prefilter_chain
-
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+from envcap.gpu.context import create_context
+from envcap.outputs import atomic_output_dir
+from envcap.prefilter import convolve_exact_dirs, omega_box_pyramid, prefilter_chain
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -26,19 +27,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="face size at which the exact method runs on every output texel (measured, not extrapolated)")
 
 
-def inputs(n: int, ctx=None) -> dict[str, np.ndarray]:
-    """Real inputs: the captured canyon probe over its sky, and the Preetham sky with its sun."""
-    from envcap.benchmarks.inputs import real_inputs
-
-    return real_inputs(n, ctx)
-
-
 def run(args: argparse.Namespace) -> int:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from envcap.gpu.gl import create_context
 
     n = int(args.size)
     if n < 2:
@@ -50,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
         lad = lobe_ladder(size)
         run_rec: dict = {"size": size, "exact": "sampled" if samples else "full", "ladder": lad.to_manifest(), "inputs": {}}
         total_out = sum(6 * s * s for s in lad.sizes[1:])
-        for name, env in inputs(size, ctx).items():
+        for name, env in real_inputs(size, ctx).items():
             rec: dict = {}
             picks, exact, t_exact = [], [], 0.0
             for k in range(1, lad.levels):
@@ -70,8 +62,8 @@ def run(args: argparse.Namespace) -> int:
                 out = []
                 for k in range(1, lad.levels):
                     om = cm.texel_solid_angles(lad.sizes[k]).reshape(-1)[picks[k - 1]]
-                    yf = chain[k].reshape(-1, chain[k].shape[-1])[picks[k - 1], :3] @ LUMA
-                    ye = exact[k - 1][:, :3] @ LUMA
+                    yf = luminance(chain[k].reshape(-1, chain[k].shape[-1])[picks[k - 1]])
+                    ye = luminance(exact[k - 1])
                     out.append(float(math.sqrt((om * (yf - ye) ** 2).sum() / (om * ye**2).sum())))
                 return out
 

@@ -4,9 +4,9 @@ For cosine powers ``w`` log-spaced in [1, 1e4], each method builds its chain the
 to be built and is looked up at its own continuous level for ``w`` (GL-style trilinear between
 the two nearest levels, seamless bilinear within a level: :func:`envcap.core.cube_sampling.sample_cube`);
 the error is against the exact normalized ``cos^w`` convolution
-(:func:`envcap.prefilter.filters.convolve_exact_dirs`) at random uniform directions:
+(:func:`envcap.prefilter.exact.convolve_exact_dirs`) at random uniform directions:
 
-* ``envcap``: :func:`envcap.core.lobes.lobe_ladder` + :func:`envcap.prefilter.filters.prefilter_chain`,
+* ``envcap``: :func:`envcap.core.lobes.lobe_ladder` + :func:`envcap.prefilter.fast.prefilter_chain`,
   level ``z(w)`` from the ladder table;
 * ``envcap_sigma1``: the same with ``lobe_ladder(N, sigma_texels=1)`` (each level's lobe spans
   one texel RMS instead of half a texel);
@@ -29,7 +29,13 @@ import time
 
 import numpy as np
 
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+from envcap.benchmarks.inputs import real_inputs
+from envcap.core.color import luminance
+from envcap.core.cube_sampling import sample_cube
+from envcap.core.lobes import lobe_ladder
+from envcap.gpu.context import create_context
+from envcap.outputs import atomic_output_dir
+from envcap.prefilter import convolve_exact_dirs, omega_box_pyramid, prefilter_chain, prefilter_level
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -59,13 +65,6 @@ def run(args: argparse.Namespace) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from envcap.core.atomic import atomic_output_dir
-    from envcap.core.cube_sampling import sample_cube
-    from envcap.gpu.gl import create_context
-    from envcap.core.lobes import lobe_ladder
-    from envcap.prefilter.filters import convolve_exact_dirs, omega_box_pyramid, prefilter_chain, prefilter_level
-    from envcap.benchmarks.inputs import real_inputs
-
     n = int(args.size)
     if n < 4:
         raise ValueError(f"--size must be >= 4, got {n}")
@@ -90,9 +89,9 @@ def run(args: argparse.Namespace) -> int:
         }
         rec = {m: [] for m in chains}
         for i, w in enumerate(ws):
-            ye = convolve_exact_dirs(env, w, dirs)[:, :3] @ LUMA
+            ye = luminance(convolve_exact_dirs(env, w, dirs))
             for m, (chain, lod) in chains.items():
-                yl = sample_cube(chain, dirs, np.full(len(dirs), lod[i]))[:, :3] @ LUMA
+                yl = luminance(sample_cube(chain, dirs, np.full(len(dirs), lod[i])))
                 rec[m].append(float(np.sqrt(np.mean((yl - ye) ** 2) / np.mean(ye ** 2))))
         result["inputs"][name] = rec
         print(name, f"{time.perf_counter() - t0:.1f} s", {m: f"max {max(v):.3g} median {np.median(v):.3g}" for m, v in rec.items()}, flush=True)

@@ -1,1 +1,2 @@
-"""Shared foundations: cube conventions, lat-long maps, lobe ladder, colour, validation, atomic outputs, data files."""
+"""Shared foundations: cube conventions and sampling, lat-long maps, the lobe ladder, the one
+luminance (``color``), shared validation (``checks``), memory budgets, image reading, data files."""

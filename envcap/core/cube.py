@@ -1,6 +1,6 @@
 """Cube-map conventions: the one source of truth for envcap.
 
-Conventions (tested against OpenGL itself in ``tests/test_cube_gl.py``):
+Conventions (tested against OpenGL itself in ``tests/gpu/test_cube_gl.py``):
 
 * World frame: right-handed, meters, +Y up.
 * Faces in OpenGL order: 0 = +X, 1 = -X, 2 = +Y, 3 = -Y, 4 = +Z, 5 = -Z.
@@ -25,21 +25,17 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from envcap.core.checks import finite_directions, positive_int
+
 FACE_NAMES: tuple[str, ...] = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
 """Face names in OpenGL order (index = face number)."""
 
 FloatArray = NDArray[np.floating]
 
 
-def _check_size(n: int) -> int:
-    if not isinstance(n, (int, np.integer)) or isinstance(n, bool) or n < 1:
-        raise ValueError(f"cube face size must be a positive integer, got {n!r}")
-    return int(n)
-
-
 def texel_centers(n: int) -> NDArray[np.float64]:
     """Face coordinates ``u = 2s - 1`` of the ``n`` texel centers along one axis, in (-1, 1)."""
-    n = _check_size(n)
+    n = positive_int(n, "cube face size")
     return (np.arange(n, dtype=np.float64) + 0.5) / n * 2.0 - 1.0
 
 
@@ -92,7 +88,7 @@ def _area_element(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.
 def texel_solid_angle(row: NDArray[np.integer], col: NDArray[np.integer], n: int) -> NDArray[np.float64]:
     """Exact solid angle (sr) of texels ``(row, col)`` of an ``n``-texel face (any face: they are
     all alike), for selected texels only, so that a large ``n`` costs no ``(6, n, n)`` array."""
-    n = _check_size(n)
+    n = positive_int(n, "cube face size")
     col = np.asarray(col, dtype=np.float64)
     row = np.asarray(row, dtype=np.float64)
     x0, x1 = col / n * 2.0 - 1.0, (col + 1) / n * 2.0 - 1.0
@@ -106,7 +102,7 @@ def texel_solid_angles(n: int) -> NDArray[np.float64]:
     Computed in float64 from the closed form of the solid angle subtended by an axis-aligned
     rectangle on the plane at unit distance (no small-texel approximation).
     """
-    n = _check_size(n)
+    n = positive_int(n, "cube face size")
     row, col = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
     return np.broadcast_to(texel_solid_angle(row, col, n), (6, n, n)).copy()
 
@@ -118,16 +114,10 @@ def direction_to_face_uv(d: FloatArray) -> tuple[NDArray[np.int64], NDArray[np.f
     Mesa.  The sign of a zero component does not matter.  A zero or non-finite direction is
     invalid and raises ``ValueError``: a silent face choice for it would be a wrong answer.
     """
-    d = np.asarray(d, dtype=np.float64)
-    if d.shape[-1:] != (3,):
-        raise ValueError(f"directions must have shape (..., 3), got {d.shape}")
-    if not np.all(np.isfinite(d)):
-        raise ValueError("directions contain NaN or Inf")
+    d = finite_directions(d)
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
     ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
     ma = np.maximum(ax, np.maximum(ay, az))
-    if np.any(ma == 0):
-        raise ValueError("zero-length direction has no cube face")
     xmaj = (ax >= ay) & (ax >= az)
     ymaj = ~xmaj & (ay >= az)
     face = np.where(xmaj, np.where(x >= 0, 0, 1), np.where(ymaj, np.where(y >= 0, 2, 3), np.where(z >= 0, 4, 5)))
@@ -144,7 +134,7 @@ def direction_to_face_st(d: FloatArray) -> tuple[NDArray[np.int64], NDArray[np.f
 
 def direction_to_texel(d: FloatArray, n: int) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """Face, row (t) and column (s) of the texel of an ``n``-texel cube that contains ``d``."""
-    n = _check_size(n)
+    n = positive_int(n, "cube face size")
     face, s, t = direction_to_face_st(d)
     col = np.clip(np.floor(s * n), 0, n - 1).astype(np.int64)
     row = np.clip(np.floor(t * n), 0, n - 1).astype(np.int64)

@@ -11,7 +11,7 @@ GL rules followed (OpenGL 4.5 core, sections 8.13 "Cube Map Texture Selection" a
   adjacent face (the texel containing the direction of its center on the extended face plane);
   one beyond a corner (outside both edges) is the average of the other three texels of the
   footprint, which are the three texels meeting at the cube corner (GL allows this; llvmpipe
-  does it -- checked in ``tests/test_cube_sampling.py``);
+  does it -- checked in ``tests/core/test_cube_sampling.py``);
 * explicit lod: clamped to [0, levels - 1]; levels ``floor(lod)`` and the next, linear in
   ``frac(lod)`` (``LINEAR_MIPMAP_LINEAR``);
 * cube-map array layer ``clamp(floor(layer + 0.5), 0, layers - 1)``.

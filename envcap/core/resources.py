@@ -20,7 +20,8 @@ def _data_dir(name: str) -> Path:
 
 
 def shaders_dir() -> Path:
-    """Directory holding the GLSL sources."""
+    """Directory holding the GLSL sources, one subfolder per stage: ``capture/``, ``prefilter/``,
+    ``runtime/`` (the sampling library) and ``preview/``."""
     return _data_dir("shaders")
 
 
@@ -30,29 +31,49 @@ def city_scenes_dir() -> Path:
 
 
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
+# The directive that lets glslang accept #include; expand_includes resolves the includes itself,
+# and GL drivers do not know this extension, so its line is dropped.
+_INCLUDE_EXTENSION = re.compile(r'^\s*#extension\s+GL_GOOGLE_include_directive\s*:\s*\w+\s*\n?', re.MULTILINE)
+
+
+def shader_path(name: str) -> Path:
+    """The file of GLSL shader ``name``, a ``/``-separated path relative to ``shaders/``.
+
+    Names are those a standard include would use with ``shaders/`` on the include path
+    (``glslangValidator -I shaders``, or ``GL_ARB_shading_language_include`` named strings under
+    ``/``): e.g. ``"runtime/envcap_runtime.glsl"``, also inside ``#include`` lines of files in
+    subfolders.  Absolute names and ``..`` are refused."""
+    parts = name.split("/")
+    if not name or name.startswith("/") or any(p in ("", ".", "..") for p in parts):
+        raise ValueError(f"shader name '{name}' must be a relative path under shaders/ without '.' or '..'")
+    path = shaders_dir().joinpath(*parts)
+    if not path.is_file():
+        raise FileNotFoundError(f"shader '{name}' not found in {shaders_dir()}")
+    return path
 
 
 def expand_includes(source: str, _seen: set[str] | None = None) -> str:
-    """Resolve ``#include "file"`` lines of GLSL ``source`` against ``shaders/``, recursively.
+    """Resolve ``#include "name"`` lines of GLSL ``source`` recursively (names: :func:`shader_path`).
 
-    Each file is included at most once (later includes of it expand to nothing)."""
+    Each file is included at most once (later includes of it expand to nothing); the library
+    files also carry include guards, so a standard ``#include`` gives the same program.  A line
+    ``#extension GL_GOOGLE_include_directive : require`` (which glslang needs for ``#include``) is
+    dropped, so one source compiles both ways."""
     seen = set() if _seen is None else _seen
 
     def load(match: re.Match[str]) -> str:
-        fname = match.group(1)
-        if fname in seen:
+        name = match.group(1)
+        if name in seen:
             return ""
-        seen.add(fname)
-        path = shaders_dir() / fname
-        if not path.is_file():
-            raise FileNotFoundError(f"shader '{fname}' not found in {shaders_dir()}")
-        return expand_includes(path.read_text(), seen)
+        seen.add(name)
+        return expand_includes(shader_path(name).read_text(), seen)
 
-    return _INCLUDE.sub(load, source)
+    return _INCLUDE.sub(load, _INCLUDE_EXTENSION.sub("", source))
 
 
 def shader_source(name: str, defines: dict[str, object] | None = None) -> str:
-    """Read GLSL file ``name`` from ``shaders/``, resolving ``#include "file"`` lines.
+    """Read GLSL file ``name`` (e.g. ``"capture/capture_frag.glsl"``, see :func:`shader_path`),
+    resolving ``#include "name"`` lines.
 
     Each file is included at most once.  ``defines`` become ``#define KEY VALUE`` lines inserted
     right after the ``#version`` line (the file must start with one if defines are given).

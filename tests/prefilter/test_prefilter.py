@@ -7,16 +7,15 @@ import numpy as np
 import pytest
 
 from envcap.core import cube as cm
+from envcap.core.color import luminance
 from envcap.core.lobes import lobe_ladder
-from envcap.prefilter.filters import (check_finite_cube, convolve_exact, convolve_exact_dirs, footprint_rects,
+from envcap.prefilter import (check_finite_cube, convolve_exact, convolve_exact_dirs, footprint_rects,
                               omega_box_pyramid, prefilter_chain)
-
-LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 
 def _rel_rmse(fast, exact):
     om = cm.texel_solid_angles(exact.shape[1])
-    yf, ye = fast[..., :3] @ LUMA, exact[..., :3] @ LUMA
+    yf, ye = luminance(fast), luminance(exact)
     return math.sqrt((om * (yf - ye) ** 2).sum() / (om * ye**2).sum())
 
 

@@ -1,16 +1,11 @@
-"""Cosine-lobe mip chains: an exact float64 reference and a fast GLSL filter.
+"""The fast cosine-lobe filter: a GLSL compute pass per level (``shaders/prefilter/prefilter_lobe.glsl``).
 
-Level ``k`` of a chain holds the environment averaged under the *normalized* lobe
-``max(0, d.u)^w_k`` (``w_k`` from :class:`envcap.core.lobes.LobeLadder`)::
-
-    m_k(d) = sum_u max(0, d.u)^w_k Omega(u) L(u) / sum_u max(0, d.u)^w_k Omega(u)
-
-a solid-angle weighted average over all source texels ``u`` (texel-center quadrature with the
-exact texel solid angles of :func:`envcap.core.cube.texel_solid_angles`, across face seams).  ``w = 0``
-is the plain hemisphere average.  Cubes are ``(6, N, N, C)`` (any channel count; RGBA of a
-street probe is filtered with the same weights, which keeps premultiplied alpha consistent).
-Inputs with NaN or Inf texels are rejected with ``ValueError``.  Derivation and measured
-accuracy: ``docs/prefilter.md``.
+Computes the chain ``m_k`` defined in :mod:`envcap.prefilter.exact` (level 0 = the input, level
+``k`` = the normalized ``cos^w_k`` average), approximated as follows: the source is the coarsest
+solid-angle box reduction whose texels are small against the lobe, each coarse texel placed at its
+luminance-weighted centroid direction; weights below a fraction of the peak are skipped
+(:func:`footprint_rects`); a few very bright texels (a sun) are summed exactly at full resolution.
+:data:`QUALITY` sets the trade-off.  Derivation and measured accuracy: ``docs/prefilter.md``.
 """
 
 from __future__ import annotations
@@ -20,21 +15,17 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from tqdm import tqdm
 
-from envcap.core import cube as cubemod
+from envcap.core import cube as cube_geometry
+from envcap.core.color import luminance
 from envcap.core.lobes import LobeLadder, lobe_ladder
+from envcap.core.resources import shader_source
+from envcap.gpu.context import create_context
+from envcap.prefilter.exact import check_cosine_power, check_finite_cube
 
-__all__ = [
-    "check_finite_cube",
-    "convolve_exact",
-    "convolve_exact_dirs",
-    "omega_box_pyramid",
-    "footprint_rects",
-    "prefilter_chain",
-    "prefilter_many",
-    "prefilter_level",
-    "QUALITY",
-]
+__all__ = ["QUALITY", "HOT_FACTOR", "MAX_HOT", "Quality", "footprint_rects", "prefilter_chain", "prefilter_many",
+           "prefilter_level"]
 
 # quality -> (q: source texels per lobe RMS angle, eps: footprint truncation (weights < eps * peak /
 # dynamic range dropped), smallest source face size used).  Measured accuracy: docs/prefilter.md.
@@ -48,109 +39,11 @@ HOT_FACTOR = 1e3
 MAX_HOT = 256
 """At most this many hot texels per cube (the brightest); the rest stay in the source levels."""
 _LOOP_BUDGET = 30000  # llvmpipe ends a shader's loops after 65535 iterations in all
-_LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 # Face frames of envcap.core.cube: direction = N + u A + v B.
 _FN = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], np.float64)
 _FA = np.array([[0, 0, -1], [0, 0, 1], [1, 0, 0], [1, 0, 0], [1, 0, 0], [-1, 0, 0]], np.float64)
 _FB = np.array([[0, -1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1], [0, -1, 0], [0, -1, 0]], np.float64)
-
-
-def check_finite_cube(cube: ArrayLike, name: str = "cube") -> NDArray[np.float64]:
-    """Validate a ``(6, N, N, C)`` cube with finite values; return it as float64.
-
-    Raises ``ValueError`` for a bad shape, and for NaN/Inf texels naming their count.
-    """
-    a = cubemod.check_cube(np.asarray(cube), name)
-    if a.ndim != 4:
-        raise ValueError(f"{name} must have shape (6, N, N, C), got {a.shape}")
-    a = np.asarray(a, dtype=np.float64)
-    bad = ~np.isfinite(a)
-    if bad.any():
-        texels = int(np.count_nonzero(bad.any(axis=-1)))
-        raise ValueError(f"{name} has {texels} texel(s) with NaN or Inf values ({int(bad.sum())} values); "
-                         "clean the input (e.g. clamp the sun) before filtering")
-    return a
-
-
-def _check_w(w: float) -> float:
-    w = float(w)
-    if math.isnan(w) or w < 0 or math.isinf(w):
-        raise ValueError(f"cosine power w must be finite and >= 0, got {w!r}")
-    return w
-
-
-def convolve_exact_dirs(cube: ArrayLike, w: float, dirs: ArrayLike, chunk_elems: int = 1 << 22) -> NDArray[np.float64]:
-    """Exact normalized ``cos^w`` average of ``cube`` at unit directions ``dirs`` (``(..., 3)``).
-
-    float64 brute force over every source texel (texel-center quadrature, exact solid angles),
-    processed in chunks of about ``chunk_elems`` weights so memory stays bounded.  Weights are
-    computed as ``exp(w (log cos - log cos_max))`` per output direction, so ``w = 1e7`` gives the
-    nearest texel instead of 0/0.  Returns ``(..., C)`` float64.
-    """
-    a = check_finite_cube(cube)
-    w = _check_w(w)
-    d = np.asarray(dirs, dtype=np.float64)
-    if d.shape[-1:] != (3,):
-        raise ValueError(f"dirs must have shape (..., 3), got {d.shape}")
-    out_shape = d.shape[:-1]
-    d = d.reshape(-1, 3)
-    norm = np.linalg.norm(d, axis=1)
-    if not np.all(np.isfinite(norm)) or np.any(norm == 0):
-        raise ValueError("dirs must be finite and non-zero")
-    d = d / norm[:, None]
-    n, c = a.shape[1], a.shape[3]
-    src_dirs = cubemod.texel_directions(n).reshape(-1, 3)
-    omega = cubemod.texel_solid_angles(n).reshape(-1)
-    vals = a.reshape(-1, c) * omega[:, None]
-    out = np.empty((d.shape[0], c), dtype=np.float64)
-    step = max(1, chunk_elems // src_dirs.shape[0])
-    for s0 in range(0, d.shape[0], step):
-        cosv = d[s0:s0 + step] @ src_dirs.T
-        pos = cosv > 0
-        if w == 0:
-            wt = pos.astype(np.float64)
-        else:
-            with np.errstate(divide="ignore"):
-                lc = np.where(pos, np.log(np.where(pos, cosv, 1.0)), -np.inf)
-            lc -= lc.max(axis=1, keepdims=True)
-            wt = np.exp(w * lc)
-        wt *= pos
-        out[s0:s0 + step] = (wt @ vals) / (wt @ omega)[:, None]
-    return out.reshape(out_shape + (c,))
-
-
-def convolve_exact(cube: ArrayLike, w: float, out_size: int) -> NDArray[np.float64]:
-    """Exact normalized ``cos^w`` filter of ``cube`` ``(6, N, N, C)`` onto a ``(6, M, M, C)`` cube.
-
-    ``M = out_size``; output texels are evaluated at their GL texel-center directions.  Slow by
-    design (``6 M^2 x 6 N^2`` weights): the reference for tests and benchmarks.
-    """
-    m = int(out_size)
-    if m < 1:
-        raise ValueError(f"out_size must be >= 1, got {out_size}")
-    return convolve_exact_dirs(cube, w, cubemod.texel_directions(m))
-
-
-def omega_box_pyramid(cube: ArrayLike, levels: int) -> list[NDArray[np.float64]]:
-    """Solid-angle weighted 2x2 reductions: level ``j`` texel = exact mean of ``L`` over its solid angle.
-
-    ``sum(Omega * L)`` is the same at every level (solid angles add up exactly).  Stops early at
-    odd sizes.  Returns float64 arrays ``(6, N >> j, N >> j, C)``.
-    """
-    a = np.asarray(cube, dtype=np.float64)
-    out = [a]
-    n = a.shape[1]
-    om = cubemod.texel_solid_angles(n)[..., None]
-    wsum = a * om
-    for _ in range(1, levels):
-        if n % 2 or n < 2:
-            break
-        n //= 2
-        wsum = wsum.reshape(6, n, 2, n, 2, -1).sum(axis=(2, 4))
-        om = om.reshape(6, n, 2, n, 2, 1).sum(axis=(2, 4))
-        out.append(wsum / om)
-    return out
 
 
 def footprint_rects(dirs: ArrayLike, theta: float, n_src: int) -> NDArray[np.int32]:
@@ -204,11 +97,11 @@ def footprint_rects(dirs: ArrayLike, theta: float, n_src: int) -> NDArray[np.int
     return rects
 
 
-def _luminance(a: NDArray[np.float64]) -> NDArray[np.float64]:
+def _luminance_weight(a: NDArray[np.float64]) -> NDArray[np.float64]:
     """Non-negative luminance weight of each texel of ``(..., C)``: Rec.709 Y of the first three
     channels when ``C >= 3``, else the sum of the positive channels."""
     if a.shape[-1] >= 3:
-        y = a[..., :3] @ _LUMA
+        y = luminance(a)
     else:
         y = np.maximum(a, 0.0).sum(axis=-1)
     return np.maximum(y, 0.0)
@@ -227,8 +120,8 @@ class _Pyramid:
 
     def __init__(self, a: NDArray[np.float64], levels: int) -> None:
         p, _, n, _, c = a.shape
-        om0 = cubemod.texel_solid_angles(n)
-        y = _luminance(a)
+        om0 = cube_geometry.texel_solid_angles(n)
+        y = _luminance_weight(a)
         self.hot_idx: list[NDArray[np.int64]] = []
         dyn = 1.0
         keep = np.ones(y.shape, bool)
@@ -245,7 +138,7 @@ class _Pyramid:
             if pos.size and rest.size and rest.max() > 0:
                 dyn = max(dyn, float(rest.max() / med))
         self.dyn = dyn
-        d0 = cubemod.texel_directions(n)
+        d0 = cube_geometry.texel_directions(n)
         self.hot_dirs = [d0.reshape(-1, 3)[h] for h in self.hot_idx]
         self.hot_s = [(a[i] * om0[..., None]).reshape(-1, c)[h] for i, h in enumerate(self.hot_idx)]
         s = a * om0[None, ..., None] * keep[..., None]
@@ -300,10 +193,8 @@ def _loop_estimate(theta: float, n: int) -> float:
 
 class _GLFilter:
     def __init__(self, ctx: Any) -> None:
-        from envcap.core.resources import shader_source
-
         self.ctx = ctx
-        self.prog = ctx.compute_shader(shader_source("prefilter_lobe.glsl"))
+        self.prog = ctx.compute_shader(shader_source("prefilter/prefilter_lobe.glsl"))
 
     def run(self, s4: NDArray[np.float64], dirs: NDArray[np.float64], om: NDArray[np.float64],
             hot_s: list[NDArray[np.float64]], hot_d: list[NDArray[np.float64]], n_out: int, w: float,
@@ -347,8 +238,8 @@ class _GLFilter:
         bad = ~np.isfinite(out).all(axis=-1)
         if bad.any():  # every weight underflowed (lobe << one source texel): the nearest texel, w -> inf
             pi, f, r, c = np.nonzero(bad)
-            d = cubemod.face_uv_to_direction(f, (c + 0.5) * 2.0 / n_out - 1.0, (r + 0.5) * 2.0 / n_out - 1.0)
-            ff, rr, cc = cubemod.direction_to_texel(d, n)
+            d = cube_geometry.face_uv_to_direction(f, (c + 0.5) * 2.0 / n_out - 1.0, (r + 0.5) * 2.0 / n_out - 1.0)
+            ff, rr, cc = cube_geometry.direction_to_texel(d, n)
             out[pi, f, r, c] = (s4[pi, ff, rr, cc] / om[ff, rr, cc, None]).astype(np.float32)
         return out
 
@@ -368,8 +259,6 @@ def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: 
     block for a batch of probes whose source buffers fit ``batch_bytes``), the form a probe-set
     bake wants: level ``k`` of all probes is one array, ready for a cube-map array.
     """
-    from tqdm import tqdm
-
     a = np.asarray(cubes)
     if a.ndim != 5:
         raise ValueError(f"cubes must have shape (P, 6, N, N, C), got {a.shape}")
@@ -393,8 +282,6 @@ def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: 
         return chain
     own = ctx is None
     if own:
-        from envcap.gpu.gl import create_context
-
         ctx = create_context()
     filt = _GLFilter(ctx)
     per = max(1, int(batch_bytes // (6 * n * n * 16)))
@@ -433,7 +320,7 @@ def prefilter_level(cube: ArrayLike, w: float, out_size: int, quality: Quality =
     For chains built on other ladders (e.g. the cmft comparison in ``envcap bench zw``).
     """
     a = check_finite_cube(cube)
-    w = _check_w(w)
+    w = check_cosine_power(w)
     m = int(out_size)
     if m < 1:
         raise ValueError(f"out_size must be >= 1, got {out_size}")
@@ -442,8 +329,6 @@ def prefilter_level(cube: ArrayLike, w: float, out_size: int, quality: Quality =
     q, eps0, min_src = QUALITY[quality]
     own = ctx is None
     if own:
-        from envcap.gpu.gl import create_context
-
         ctx = create_context()
     filt = _GLFilter(ctx)
     try:

@@ -1,3 +1,5 @@
+#ifndef ENVCAP_LOBES_GLSL
+#define ENVCAP_LOBES_GLSL
 // envcap runtime, part 2: cosine lobes.  z(w) from the manifest's lobe table and the lobes of
 // Eq. 3 for a Lafortune BRDF.  No #version: #include this.  Derivations: docs/runtime.md.
 
@@ -11,7 +13,7 @@ const float ENVCAP_PI = 3.14159265358979;
 const float ENVCAP_MAX_LOG2_WEIGHT = 64.0;
 
 // Continuous mip level of cosine power w.  `xk[k]` = log2(1 + powers[k]) for the manifest's
-// strictly decreasing lobe powers (k = 0 .. n-1, filled by envcap.runtime.parallax.lobe_table), so
+// strictly decreasing lobe powers (k = 0 .. n-1, filled by envcap.runtime.mip.lobe_table), so
 // xk is strictly decreasing.  Piecewise linear in x = log2(1 + w); clamped to [0, n - 1]:
 // w >= powers[0] (also +inf) -> 0, w <= powers[n-1] -> n - 1.  w < 0 and NaN are treated as 0.
 float envcap_z_of_w(float w, float xk[ENVCAP_MAX_LEVELS], int n)
@@ -43,3 +45,5 @@ vec4 envcap_lafortune_lobe(vec3 v, vec3 C, float w)
     float mag = e < -126.0 ? 0.0 : exp2(e);
     return vec4(c, mag * (2.0 * ENVCAP_PI / (1.0 + w)) * max(c.z, 0.0));
 }
+
+#endif  // ENVCAP_LOBES_GLSL

@@ -1,3 +1,5 @@
+#ifndef ENVCAP_STREET_GLSL
+#define ENVCAP_STREET_GLSL
 // envcap runtime, part 1: street geometry (probe selection, three-plane parallax, mip shift).
 // No #version: #include this from a shader that starts with "#version 430" (or later).
 // Conventions (envcap/core/cube.py): world right-handed, meters, +Y up.  A street runs along world
@@ -103,3 +105,5 @@ float envcap_shift_power(float w, float ratio)
 {
     return max(w, 0.0) * (ratio * ratio);
 }
+
+#endif  // ENVCAP_STREET_GLSL

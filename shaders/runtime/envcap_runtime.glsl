@@ -1,6 +1,10 @@
+#ifndef ENVCAP_RUNTIME_GLSL
+#define ENVCAP_RUNTIME_GLSL
 // envcap runtime sampling library: three-plane parallax, mip shift, sky composite, Eq. 3.
-// Include this file (resources.shader_source resolves the include lines) after "#version 430".  All functions take plain
-// values; fill them from the probe set's manifest (envcap.runtime.parallax.RuntimeStreet.uniforms()).
+// Include this file (resources.shader_source resolves the include lines) after "#version 430".
+// A street's probes and lobe table travel in one struct, EnvcapStreet (below); declare it as a
+// uniform with runtime/envcap_street_uniforms.glsl and fill it from the probe set's manifest
+// (envcap.runtime.street.RuntimeStreet.uniforms(powers), the Python mirror StreetUniforms).
 //
 // Textures: `probes` is a cube-map array (layer = probe) of premultiplied RGBA street radiance
 // (alpha 0 where the sky shows), level k convolved with the normalized cos^powers[k] lobe;
@@ -8,8 +12,21 @@
 // Texture fetches per lobe: 1 probe + 1 sky (envcap_sample_*), 2 probes + 1 sky (blended); the
 // sky fetch is skipped where the street's alpha is >= 1 (the result is the same: 1 - a = 0).
 
-#include "envcap_street.glsl"
-#include "envcap_lobes.glsl"
+#include "runtime/envcap_street.glsl"
+#include "runtime/envcap_lobes.glsl"
+
+// One street of a probe set, as the runtime samples it.  Mirrored field for field (same names,
+// same order) by envcap.runtime.street.StreetUniforms; tests/runtime/test_street_uniforms.py
+// compiles this struct and checks the mirror.
+struct EnvcapStreet {
+    float along_s[ENVCAP_MAX_PROBES];  // along-street coordinate of probe i (m), ascending
+    vec4 pos[ENVCAP_MAX_PROBES];       // probe i: xyz world position (m), w = its layer in `probes`
+    vec4 planes[ENVCAP_MAX_PROBES];    // probe i: (facade_min, facade_max, ground) in world meters, w unused
+    int count;                         // number of probes, 1 .. ENVCAP_MAX_PROBES
+    int along;                         // street axis: 0 = x, 2 = z
+    float xk[ENVCAP_MAX_LEVELS];       // log2(1 + powers[k]): the z(w) table of the lobe ladder
+    int nlevels;                       // number of levels, 1 .. ENVCAP_MAX_LEVELS
+};
 
 // Clamp a continuous mip level into the chain [0, n - 1]; NaN -> 0.
 float envcap_clamp_level(float z, int n)
@@ -40,36 +57,29 @@ vec3 envcap_sample_probe(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 
     return envcap_composite(st, textureLod(sky, d, zk).rgb);
 }
 
-// As envcap_sample_probe, with the probe nearest to x along the street.  Probe k has layer
-// pos[k].w, along-street coordinate along[k] (= pos[k][along]), position pos[k].xyz and planes
-// planes[k].xyz.
-vec3 envcap_sample_nearest(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 d, float w,
-                           float along_s[ENVCAP_MAX_PROBES], vec4 pos[ENVCAP_MAX_PROBES],
-                           vec4 planes[ENVCAP_MAX_PROBES], int count, int along,
-                           float xk[ENVCAP_MAX_LEVELS], int nlevels)
+// As envcap_sample_probe, with the probe of `street` nearest to x along the street.
+vec3 envcap_sample_nearest(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
 {
-    int i = envcap_nearest_probe(x[along], along_s, count);
-    return envcap_sample_probe(probes, sky, x, d, w, pos[i].w, pos[i].xyz, planes[i].xyz, along, xk, nlevels);
+    int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
+    return envcap_sample_probe(probes, sky, x, d, w, street.pos[i].w, street.pos[i].xyz, street.planes[i].xyz,
+                               street.along, street.xk, street.nlevels);
 }
 
 // Beyond the paper: blend the two probes that bracket x along the street, each with its own
 // parallax and mip shift, weights linear in the along-street coordinate (continuous: no
 // popping at the midpoint).  The sky term is shared.
-vec3 envcap_sample_blended(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 d, float w,
-                           float along_s[ENVCAP_MAX_PROBES], vec4 pos[ENVCAP_MAX_PROBES],
-                           vec4 planes[ENVCAP_MAX_PROBES], int count, int along,
-                           float xk[ENVCAP_MAX_LEVELS], int nlevels)
+vec3 envcap_sample_blended(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
 {
-    vec3 pr = envcap_probe_pair(x[along], along_s, count);
+    vec3 pr = envcap_probe_pair(x[street.along], street.along_s, street.count);
     int i0 = int(pr.x), i1 = int(pr.y);
-    vec4 a = envcap_parallax(x, d, pos[i0].xyz, planes[i0].xyz, along);
-    vec4 b = envcap_parallax(x, d, pos[i1].xyz, planes[i1].xyz, along);
-    float za = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, a.w), xk, nlevels), nlevels);
-    float zb = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, b.w), xk, nlevels), nlevels);
-    vec4 st = (1.0 - pr.z) * textureLod(probes, vec4(a.xyz, pos[i0].w), za)
-            + pr.z * textureLod(probes, vec4(b.xyz, pos[i1].w), zb);
+    vec4 a = envcap_parallax(x, d, street.pos[i0].xyz, street.planes[i0].xyz, street.along);
+    vec4 b = envcap_parallax(x, d, street.pos[i1].xyz, street.planes[i1].xyz, street.along);
+    float za = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, a.w), street.xk, street.nlevels), street.nlevels);
+    float zb = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, b.w), street.xk, street.nlevels), street.nlevels);
+    vec4 st = (1.0 - pr.z) * textureLod(probes, vec4(a.xyz, street.pos[i0].w), za)
+            + pr.z * textureLod(probes, vec4(b.xyz, street.pos[i1].w), zb);
     if (!(st.a < 1.0)) return st.rgb;            // street covers the lobe: no sky fetch needed
-    float zk = envcap_clamp_level(envcap_z_of_w(w, xk, nlevels), nlevels);
+    float zk = envcap_clamp_level(envcap_z_of_w(w, street.xk, street.nlevels), street.nlevels);
     return envcap_composite(st, textureLod(sky, d, zk).rgb);
 }
 
@@ -83,19 +93,18 @@ vec3 envcap_sample_blended(samplerCubeArray probes, samplerCube sky, vec3 x, vec
 #endif
 vec3 envcap_shade_lafortune(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 T, vec3 B, vec3 N,
                             vec3 v, vec3 rho_d, vec4 C[ENVCAP_MAX_LOBES], vec3 rho_s[ENVCAP_MAX_LOBES],
-                            int nlobes, float along_s[ENVCAP_MAX_PROBES], vec4 pos[ENVCAP_MAX_PROBES],
-                            vec4 planes[ENVCAP_MAX_PROBES], int count, int along,
-                            float xk[ENVCAP_MAX_LEVELS], int nlevels)
+                            int nlobes, EnvcapStreet street)
 {
     vec3 vl = vec3(dot(v, T), dot(v, B), dot(v, N));
-    vec3 L = rho_d * envcap_sample_nearest(probes, sky, x, N, 1.0, along_s, pos, planes, count, along, xk, nlevels);
+    vec3 L = rho_d * envcap_sample_nearest(probes, sky, x, N, 1.0, street);
     for (int i = 0; i < nlobes && i < ENVCAP_MAX_LOBES; ++i) {
         vec4 lobe = envcap_lafortune_lobe(vl, C[i].xyz, C[i].w);
         if (lobe.w > 0.0) {
             vec3 cw = lobe.x * T + lobe.y * B + lobe.z * N;
-            L += rho_s[i] * lobe.w * envcap_sample_nearest(probes, sky, x, cw, C[i].w, along_s, pos, planes,
-                                                           count, along, xk, nlevels);
+            L += rho_s[i] * lobe.w * envcap_sample_nearest(probes, sky, x, cw, C[i].w, street);
         }
     }
     return L;
 }
+
+#endif  // ENVCAP_RUNTIME_GLSL
