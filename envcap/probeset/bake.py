@@ -2,6 +2,9 @@
 
 This is the main job of envcap (``envcap capture SCENE --out DIR``):
 
+0. bounds before work (:mod:`envcap.probeset.bake_bounds`): the probe count, peak memory and
+   rough time estimated and refused past their limits, the mesh and the probes checked against
+   float32 range, the capture's face atlas against the GL limits (estimate printed on big jobs);
 1. the scene's sky (``scene.sky.build()``, see :class:`envcap.sky.SkySpec`) and its float32 cube;
 2. probes along each street's center line (:func:`envcap.probeset.placement.place_probes`);
 3. HDR cube captures of all probes (:class:`envcap.capture.renderer.CubeCapture`), running only the
@@ -24,11 +27,13 @@ import numpy as np
 
 from envcap.capture.outputs import probe_inside_geometry
 from envcap.capture.renderer import CubeCapture
+from envcap.core.checks import positive_int
 from envcap.core.lobes import lobe_ladder
 from envcap.gpu.context import create_context
 from envcap.prefilter import prefilter_chain, prefilter_many
+from envcap.probeset.bake_bounds import check_bake_cost, check_geometry, check_gl_limits, estimate_bake
 from envcap.probeset.manifest import LobeTable, Manifest, Probe, SceneInfo, SkyInfo, Street, SunInfo, Timings, level_table
-from envcap.probeset.placement import place_probes
+from envcap.probeset.placement import MAX_PROBES, place_probes, probe_count
 from envcap.probeset.planes import Planes, fit_planes
 from envcap.probeset.probe_set import ProbeSet
 from envcap.scene.model import Scene
@@ -51,6 +56,7 @@ def bake_probe_set(
     ctx: Any = None,
     progress: bool | None = None,
     verbose: bool = False,
+    max_probes: int = MAX_PROBES,
 ) -> ProbeSet:
     """Capture and filter the probes of every street of ``scene``.
 
@@ -67,24 +73,39 @@ def bake_probe_set(
 
     A probe that stands inside a building (most of its sphere sees back faces) is kept and
     flagged ``inside_geometry`` in the manifest, with a warning on stderr.
+
+    Bounds before work (docs/reliability.md, Limits): more than ``max_probes`` probes, a peak
+    memory past :func:`envcap.core.budget.memory_limit`, a face atlas (3N x 2N) past the GL
+    limits, or a mesh or probe past float32 distance range raise ``ValueError`` (one line) before
+    the sky is built or anything is captured; big jobs print their estimate when ``verbose``.
     """
     if not scene.streets:
         raise ValueError(f"scene '{scene.name}' has no streets: nothing to place probes along")
-    placements = [place_probes(st, spacing=spacing, height=height) for st in scene.streets]  # validates first
-    timings: dict[str, float] = {}
-    t0 = time.perf_counter()
-    sky = scene.sky.build()
-    sky_rgb = sky.cube(resolution, include_sun=sun_in_sky)
-    sky_rgba = np.concatenate([sky_rgb, np.ones(sky_rgb.shape[:-1] + (1,), np.float32)], axis=-1)
-    timings["sky_s"] = time.perf_counter() - t0
-
+    resolution = positive_int(resolution, "probe resolution (--resolution)")
+    count = sum(probe_count(st, spacing) for st in scene.streets)  # validates the spacing
+    estimate = estimate_bake(count, resolution, filter_levels=filter_levels)
+    check_bake_cost(estimate, sum(st.length for st in scene.streets), spacing, max_probes)
+    placements = [place_probes(st, spacing=spacing, height=height, max_probes=max_probes) for st in scene.streets]
     positions = np.array([p.position for street in placements for p in street], dtype=np.float64)
+    check_geometry(scene, positions)
+    if estimate.big:
+        _log(f"{scene.name}: estimate: {estimate.describe()}", verbose)
     _log(f"{scene.name}: {len(positions)} probes on {len(scene.streets)} street(s), {resolution}^2 per face", verbose)
 
+    timings: dict[str, float] = {}
     own_ctx = ctx is None
     if own_ctx:
         ctx = create_context()
     try:
+        note = check_gl_limits(ctx, resolution, len(positions))
+        if note is not None:
+            _log(f"envcap: note: {note}", verbose)
+        t0 = time.perf_counter()
+        sky = scene.sky.build()
+        sky_rgb = sky.cube(resolution, include_sun=sun_in_sky)
+        sky_rgba = np.concatenate([sky_rgb, np.ones(sky_rgb.shape[:-1] + (1,), np.float32)], axis=-1)
+        timings["sky_s"] = time.perf_counter() - t0
+
         t0 = time.perf_counter()
         cap = CubeCapture.from_scene(scene, resolution, sky=sky, ctx=ctx)
         try:

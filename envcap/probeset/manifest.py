@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from envcap import __version__
+from envcap.probeset.float32_range import check_number_ranges, positive_in_float32
 from envcap.probeset.json_codec import ManifestError, from_json, to_json
 from envcap.probeset.planes import FittedPlanes, PerPlane, Planes
 
@@ -308,21 +309,23 @@ def _check_planes(p: Planes, where: str) -> None:
 
 
 def _positive(x: float, where: str, unit: str) -> None:
-    if not x > 0:
-        raise ManifestError(f"{where}: must be positive ({unit}), got {x!r}")
+    if not positive_in_float32(x):
+        raise ManifestError(f"{where}: must be positive ({unit}) and stay so as float32, got {x!r}")
 
 
 def check_manifest(m: Manifest, where: str = "manifest") -> int:
     """Check the rules beyond types; return the number of probe layers.
 
-    Fixed fields equal their constants; ``levels[k]`` is ``{level: k, size: max(1, N >> k)}``
-    with a positive or null power, 1..log2(N)+1 of them; positive ``probe_height`` and
-    ``probe_spacing``; sky format RGBA32F; streets with unique names, axis x|z, start < end,
+    Fixed fields equal their constants; every number within float32 (reals) or int32 (integers)
+    range (:func:`envcap.probeset.float32_range.check_number_ranges`); ``levels[k]`` is
+    ``{level: k, size: max(1, N >> k)}`` with a power positive as float32 or null, 1..log2(N)+1
+    of them; ``probe_height`` and ``probe_spacing`` positive as float32; sky format RGBA32F; streets with unique names, axis x|z, start < end,
     facade_min < facade_max (street and probe planes); probe layers exactly 0..L-1.
     """
     for f in fields(Manifest):
         if f.name in _FIXED and getattr(m, f.name) != f.default:
             raise ManifestError(f"{where}: {f.name} is {getattr(m, f.name)!r}, expected {f.default!r}")
+    check_number_ranges(m, where)
     n = m.resolution
     _positive(n, f"{where}: resolution", "texels")
     most = int(math.log2(n)) + 1

@@ -11,8 +11,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from envcap.core.budget import check_count
 from envcap.probeset.planes import Planes
 from envcap.scene.model import Street
+
+MAX_PROBES = 100_000
+"""Most probes one bake places (all streets together, and on one street), unless the caller
+raises it (``max_probes`` of :func:`place_probes` and
+:func:`envcap.probeset.bake.bake_probe_set`).  At llvmpipe rates 10^5 probes take hours even
+at 4^2 texels per face; a GPU's cube-map array holds far fewer (docs/reliability.md, Limits)."""
 
 
 @dataclass(frozen=True)
@@ -25,19 +32,37 @@ class ProbePlacement:
     planes: Planes
 
 
-def place_probes(street: Street, spacing: float = 5.0, height: float = 2.0) -> list[ProbePlacement]:
+def check_spacing(spacing: float) -> float:
+    """``spacing`` (m) as a float: finite and > 0 (``ValueError`` naming the probe spacing)."""
+    if not (isinstance(spacing, (int, float)) and math.isfinite(spacing) and spacing > 0):
+        raise ValueError(f"probe spacing must be a positive number of meters, got {spacing!r}")
+    return float(spacing)
+
+
+def probe_count(street: Street, spacing: float) -> float:
+    """How many probes :func:`place_probes` puts on ``street`` at ``spacing`` m: ``max(1,
+    floor(length / spacing))``, as a float that may be huge or ``inf`` (``1e300`` m of street at
+    ``1e-9`` m), so that it can be bounded before any probe exists."""
+    per = street.length / check_spacing(spacing) + 1e-9
+    return float(max(1, math.floor(per))) if math.isfinite(per) else math.inf
+
+
+def place_probes(street: Street, spacing: float = 5.0, height: float = 2.0, *,
+                 max_probes: int = MAX_PROBES) -> list[ProbePlacement]:
     """Probes along ``street``'s center line at ``height`` m above its ground, ``spacing`` m apart.
 
     The probes are spaced exactly ``spacing`` apart and centered on the street: there are
-    ``max(1, floor(length / spacing))`` of them, so that each stands at least ``spacing / 2``
-    from the street's ends (a street shorter than ``spacing`` gets one probe at its middle).
-    The height must lie strictly between the ground and 1 km; the spacing must be positive.
+    ``max(1, floor(length / spacing))`` of them (:func:`probe_count`), so that each stands at
+    least ``spacing / 2`` from the street's ends (a street shorter than ``spacing`` gets one probe
+    at its middle).  The height must lie strictly between the ground and 1 km; the spacing must be
+    positive; more than ``max_probes`` probes are refused before any is placed
+    (:class:`envcap.core.budget.BudgetError`, naming ``--spacing``).
     """
-    if not (isinstance(spacing, (int, float)) and math.isfinite(spacing) and spacing > 0):
-        raise ValueError(f"probe spacing must be a positive number of meters, got {spacing!r}")
+    check_spacing(spacing)
     if not (isinstance(height, (int, float)) and math.isfinite(height) and 0 < height < 1000):
         raise ValueError(f"probe height must be in (0, 1000) m above the ground, got {height!r}")
-    count = max(1, int(math.floor(street.length / spacing + 1e-9)))
+    count = check_count(f"probes on street '{street.name}' ({street.length:g} m at spacing {spacing:g} m)",
+                        probe_count(street, spacing), max_probes, "--spacing")
     mid = 0.5 * (street.start + street.end)
     planes = Planes(street.facade_min, street.facade_max, street.ground)
     out = []

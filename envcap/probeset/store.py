@@ -22,13 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from envcap.outputs import atomic_output_dir
 from envcap.formats.exr_cube import read_exr_cube
 from envcap.formats.ktx2 import read_ktx2
 from envcap.formats.registry import default_writer_names, select_writers
 from envcap.formats.writer import MANIFEST_FILE, FileEntries
+from envcap.outputs import atomic_output_dir
 from envcap.probeset.manifest import Files, ManifestError, read_manifest, write_manifest
-from envcap.probeset.probe_set import ProbeSet, check_probe_set
+from envcap.probeset.probe_set import ProbeSet, check_probe_set, check_texels
 
 
 def write_probe_set(
@@ -75,7 +75,11 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
 
     Probe levels come back as float32 (from RGBA16F, exact), the sky as float32.  ``distance``
     is read from the EXR files' Z channels when they exist (and ``distance`` is true), else
-    ``None``.  Raises ``FileNotFoundError`` for missing files and ``ValueError`` for bad content.
+    ``None``.  Raises ``FileNotFoundError`` for missing files and ``ValueError`` for bad content,
+    one line naming the file: every number of the manifest within float32 range, every texel of
+    ``probes.ktx2`` and ``sky.ktx2`` finite with RGB >= 0 and alpha in [0, 1]
+    (:func:`envcap.probeset.probe_set.check_texels`: the layer and level at fault), distances
+    finite and >= 0.
     """
     root = Path(path)
     if not root.is_dir():
@@ -96,9 +100,11 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
             f"{files.probes}: {info['layers']} layers x {info['level_count']} levels of {info['size']}, "
             f"manifest says {layers} probes x {len(manifest.levels)} levels of {n}"
         )
+    check_texels(levels, True, str(root / files.probes))
     sky, sinfo = read_ktx2(root / files.sky)
     if sinfo["fmt"] != "rgba32f" or sinfo["layered"]:
         raise ValueError(f"{files.sky}: expected a plain RGBA32F cube map, got {sinfo['fmt']} layered={sinfo['layered']}")
+    check_texels(sky, False, str(root / files.sky))
     dist = None
     if distance and files.exr:
         if len(files.exr) != layers:
@@ -108,6 +114,9 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
             _, d = read_exr_cube(root / name)
             if d is None or d.shape != (6, n, n):
                 raise ValueError(f"{name}: missing or mis-sized Z (distance) channel")
+            if np.any(d < 0):
+                raise ValueError(f"{root / name}: {int(np.count_nonzero(d < 0))} texel(s) of Z (distance) are "
+                                 f"negative (smallest {float(d.min()):g}); distances are >= 0 m")
             ds.append(d)
         dist = np.stack(ds).astype(np.float32)
     return ProbeSet(manifest=manifest, levels=levels, distance=dist, sky_levels=sky)

@@ -59,6 +59,7 @@ def make_set(layers: int = 3) -> ProbeSet:
     arr = np.stack([p[0] for p in probes]).astype(np.float16).astype(np.float32)  # half-exact
     dist = np.stack([p[1] for p in probes])
     sky0 = np.ones((6, N, N, 4), np.float32) * 1000
+    sky0[..., 3] = 1.0  # the sky covers everything: alpha 1
     sky0[2, 3, 4, :3] = 1.6e9  # the sun: beyond half range
     return ProbeSet(manifest=make_manifest(xs), levels=mips(arr, NLEV), distance=dist, sky_levels=mips(sky0, NLEV))
 
@@ -101,14 +102,14 @@ def test_failure_leaves_nothing_and_keeps_old_output(tmp_path):
     bad = make_set()
     bad.levels[2] = bad.levels[2].copy()
     bad.levels[2][1, 3, 0, 0, 1] = np.nan
-    with pytest.raises(ValueError, match="level 2 contains NaN"):
+    with pytest.raises(ValueError, match=r"probe levels: layer 1, level 2: 1 of 24 texels are NaN/Inf"):
         write_probe_set(tmp_path / "set", bad)
     assert list(tmp_path.iterdir()) == []
     write_probe_set(tmp_path / "set", ps)
     before = (tmp_path / "set/manifest.json").read_text()
     over = make_set()
-    over.levels[0] = over.levels[0] * 1e3  # beyond half range: fails inside the write (KTX2)
-    over.levels[1:] = [lv * 1e3 for lv in over.levels[1:]]
+    over.levels = [lv * np.array([1e3, 1e3, 1e3, 1.0], np.float32) for lv in over.levels]  # RGB beyond half
+    # range: passes the texel checks, fails inside the write (KTX2)
     with pytest.raises(ValueError, match="half-float maximum 65504"):
         write_probe_set(tmp_path / "set", over)
     assert (tmp_path / "set/manifest.json").read_text() == before

@@ -1,0 +1,185 @@
+"""Bounds before work for a probe-set bake: probe count, peak memory, rough time, GL limits, geometry range.
+
+:func:`envcap.probeset.bake.bake_probe_set` calls these before it builds the sky or captures
+anything, so that a request that would run away with the machine (``--resolution 100000``:
+74.5 GiB; ``--spacing 1e-9``: 2*10^10 probes) or could not be captured (a face atlas past the GL
+texture size, a mesh whose distances overflow float32) fails at once with one line that says
+what was asked, what it would cost and which option changes it.
+
+The cost model (:func:`estimate_bake`) was measured on this repository's bakes with llvmpipe
+(Mesa's CPU OpenGL, 2 cores): peak resident memory and wall time of ``envcap capture`` for
+``planes`` at 256^2 x 1 probe, ``canyon`` at 64^2 x 120, 128^2 x 30 and 16^2 x 600 probes;
+the model is within 5 % of the measured peaks (docs/reliability.md, Limits).  Memory is
+checked against :func:`envcap.core.budget.memory_limit` (``ENVCAP_MAX_MEMORY`` or the memory
+available), the count against :data:`envcap.probeset.placement.MAX_PROBES`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from envcap.core.budget import check_bytes, check_count, format_bytes
+from envcap.probeset.float32_range import FLOAT32_MAX
+from envcap.scene.model import Scene
+
+__all__ = ["GEOMETRY_LIMIT_M", "BIG_BYTES", "BIG_SECONDS", "BakeEstimate", "estimate_bake", "check_bake_cost",
+           "check_gl_limits", "check_geometry", "format_seconds"]
+
+GEOMETRY_LIMIT_M = math.sqrt(FLOAT32_MAX / 12.0)
+"""Largest coordinate (m, ~5.3e18) of a vertex or probe that a float32 capture can measure: the
+squared distance between two such points (3 components of up to twice it) stays below float32's
+maximum.  Past it the capture's distances are ``inf`` (the bake used to fail only when writing)."""
+
+# Peak resident bytes per level-0 texel of the probe array (L x 6 x N^2), on top of what the
+# process holds when the bake starts (the scene).  Capture: RGBA float32 + distance float32 +
+# back-facing flag = 21 B.  Prefilter: the float64 copy of all cubes (32 B; 64 B while it is
+# stacked), the float32 chain (16 B x 4/3), and per batch of cubes its pyramid, centroid
+# directions and GL buffers (about 182 B, fitted).  The write stage (half-float copies) peaks lower.
+_CAPTURE_B = 21.0
+_STACK_B = 64.0
+_FILTER_KEPT_B = 21.0 + 32.0 + 16.0 * 4.0 / 3.0
+_BATCH_B = 182.0
+_UNFILTERED_B = 60.0          # filter_levels=False: capture, its float32 copy, the write
+_SKY_B = 260.0                # per sky texel (6 x N^2): the RGB and RGBA cubes and their filter
+_PREFILTER_BATCH_BYTES = 64 << 20  # the default ``batch_bytes`` of envcap.prefilter.prefilter_many
+_GL_BYTES = 64 << 20          # a fresh GL context and the capture target
+
+# Seconds at llvmpipe rates (2 CPU cores): per probe (draw setup, files) and per texel.
+_PROBE_S = 0.025 + 0.012
+_CAPTURE_TEXEL_S = 2e-6
+_FILTER_TEXEL_S = 12e-6
+_WRITE_TEXEL_S = 2.5e-6
+_SKY_TEXEL_S = 35e-6
+
+BIG_BYTES = 1 << 30
+"""A bake estimated past this peak memory (or :data:`BIG_SECONDS`) prints its estimate first."""
+BIG_SECONDS = 60.0
+
+
+def format_seconds(seconds: float) -> str:
+    """``"40 s"``, ``"12 min"``, ``"3.5 h"``, ``"120 days"``."""
+    if not math.isfinite(seconds):
+        return "forever"
+    for unit, scale in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
+        if seconds >= 2 * scale:
+            return f"{seconds / scale:.3g} {unit}"
+    return f"{seconds:.0f} s"
+
+
+def _count(probes: float) -> str:
+    return f"{int(probes):,}" if probes < 1e15 else f"{probes:.3g}"
+
+
+def _square(n: float) -> float:
+    return n * n  # float: inf, never OverflowError
+
+
+@dataclass(frozen=True)
+class BakeEstimate:
+    """What a bake will hold and take, before it starts.
+
+    ``probes``: probe count (a float: may be huge); ``resolution``: face size N (texels);
+    ``texels``: level-0 texels of the probe array (``probes x 6 x N^2``); ``peak_bytes``: peak
+    resident memory added by the bake; ``seconds``: rough wall time at llvmpipe rates (a GPU is
+    faster).
+    """
+
+    probes: float
+    resolution: int
+    texels: float
+    peak_bytes: float
+    seconds: float
+
+    @property
+    def big(self) -> bool:
+        """Whether the estimate is worth printing before the work starts."""
+        return self.peak_bytes > BIG_BYTES or self.seconds > BIG_SECONDS
+
+    def describe(self) -> str:
+        """``"600 probes at 16^2 per face: peak memory ~431 MiB, roughly 40 s at llvmpipe rates"``."""
+        return (f"{_count(self.probes)} probes at {self.resolution}^2 per face: peak memory ~{format_bytes(self.peak_bytes)}, "
+                f"roughly {format_seconds(self.seconds)} at llvmpipe (CPU) rates, less on a GPU")
+
+
+def estimate_bake(probes: float, resolution: int, *, filter_levels: bool = True) -> BakeEstimate:
+    """The cost model of a bake of ``probes`` probes at ``resolution`` texels per face
+    (see the module docstring); every quantity is a float (``inf`` when past counting)."""
+    n = float(resolution) if resolution < 1 << 1000 else math.inf
+    face = 6.0 * _square(n)
+    texels = probes * face
+    if filter_levels:
+        per_batch = max(1.0, math.floor(_PREFILTER_BATCH_BYTES / (face * 16.0))) if math.isfinite(face) else 1.0
+        batch = min(texels, per_batch * face)
+        peak = max((_CAPTURE_B + _STACK_B) * texels, (_CAPTURE_B + _FILTER_KEPT_B) * texels + _BATCH_B * batch)
+        seconds = texels * (_CAPTURE_TEXEL_S + _FILTER_TEXEL_S + _WRITE_TEXEL_S)
+    else:
+        peak = _UNFILTERED_B * texels
+        seconds = texels * (_CAPTURE_TEXEL_S + _WRITE_TEXEL_S)
+    peak += _SKY_B * face + _GL_BYTES
+    seconds += probes * _PROBE_S + face * _SKY_TEXEL_S
+    return BakeEstimate(probes, int(resolution), texels, peak, seconds)
+
+
+def check_bake_cost(est: BakeEstimate, street_length_m: float, spacing: float, max_probes: int) -> None:
+    """Refuse ``est`` past ``max_probes`` probes or past the memory limit
+    (:class:`envcap.core.budget.BudgetError`: what was asked, its cost, the option to change)."""
+    cost = f"~{format_bytes(est.peak_bytes)}, {format_seconds(est.seconds)} at llvmpipe rates"
+    check_count(f"probes for {street_length_m:g} m of streets at spacing {spacing:g} m ({cost})", est.probes,
+                max_probes, "--spacing (or max_probes= of bake_probe_set)")
+    check_bytes(f"bake of {_count(est.probes)} probes at {est.resolution}^2 texels per face "
+                f"({format_seconds(est.seconds)} at llvmpipe rates)", est.peak_bytes, "--resolution or --spacing")
+
+
+def check_gl_limits(ctx: Any, resolution: int, probes: int) -> str | None:
+    """Check the capture's face atlas (3N x 2N texels) against this context's limits
+    (``ValueError`` naming the largest resolution that fits); return a note when ``probes``
+    cubes exceed the context's cube-map-array layers (an engine on it must split the set), else
+    ``None``."""
+    info = ctx.info
+    renderer = info.get("GL_RENDERER", "this OpenGL")
+    viewport = info.get("GL_MAX_VIEWPORT_DIMS", (math.inf, math.inf))
+    limits = {"GL_MAX_TEXTURE_SIZE": info.get("GL_MAX_TEXTURE_SIZE", math.inf),
+              "GL_MAX_RENDERBUFFER_SIZE": info.get("GL_MAX_RENDERBUFFER_SIZE", math.inf),
+              "GL_MAX_VIEWPORT_DIMS": viewport[0] if isinstance(viewport, (tuple, list)) else viewport}
+    name, most = min(limits.items(), key=lambda kv: kv[1])
+    if 3 * resolution > most:
+        raise ValueError(f"--resolution {resolution}: the capture renders the 6 faces into one {3 * resolution} x "
+                         f"{2 * resolution} target, past {name} {most} of {renderer}; use --resolution <= {int(most) // 3}")
+    layers = info.get("GL_MAX_ARRAY_TEXTURE_LAYERS")
+    if layers is not None and 6 * probes > layers:
+        return (f"{probes} probes are {6 * probes} cube faces, more than GL_MAX_ARRAY_TEXTURE_LAYERS {layers} of "
+                f"{renderer}: a renderer like it holds the set in several cube-map arrays")
+    return None
+
+
+def _where(scene: Scene) -> str:
+    source = scene.meta.get("source") if isinstance(scene.meta, dict) else None
+    return f"scene '{scene.name}'" + (f" ({source})" if source else "")
+
+
+def check_geometry(scene: Scene, positions: NDArray[np.float64]) -> None:
+    """Refuse, before any capture, geometry a float32 capture cannot measure (``ValueError``
+    naming the scene and the mesh's scale / offset or the streets).
+
+    The capture renders relative to the mesh's origin (``SceneMesh.origin``): the mesh's
+    float32 ``positions`` and the probes' offsets from that origin must lie within
+    :data:`GEOMETRY_LIMIT_M`; the probes' world ``positions`` ``(P, 3)`` (m, float64, the
+    manifest's) within float32 range.
+    """
+    mesh = scene.mesh
+    reach = float(np.max(np.abs(mesh.positions))) if mesh.positions.size else 0.0
+    if not reach <= GEOMETRY_LIMIT_M:
+        raise ValueError(f"{_where(scene)}: mesh coordinates reach {reach:.3g} m, past the {GEOMETRY_LIMIT_M:.2g} m "
+                         "within which a float32 capture measures distances; check the mesh's scale and offset")
+    pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    world = float(np.max(np.abs(pos))) if pos.size else 0.0
+    local = float(np.max(np.abs(pos - mesh.origin))) if pos.size else 0.0
+    if not (world <= FLOAT32_MAX and local <= GEOMETRY_LIMIT_M):
+        raise ValueError(f"{_where(scene)}: probe positions reach {max(world, local):.3g} m (from the mesh's origin "
+                         f"{local:.3g} m), past the {GEOMETRY_LIMIT_M:.2g} m within which a float32 capture measures "
+                         "distances; check the streets' coordinates")
