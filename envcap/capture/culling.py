@@ -25,7 +25,8 @@ class TriangleChunks:
     ``order`` (T,) int64: triangle ``k`` of the reordered buffer is input triangle ``order[k]``.
     ``first``, ``count`` (C,) int64: chunk ``c`` is reordered triangles ``first[c] ..
     first[c] + count[c] - 1``.  ``lo``, ``hi`` (C, 3) float64: the chunk's axis-aligned bounding
-    box in meters (exact bounds of its float32 vertices).  Chunks are stored in the order of
+    box in meters (exact bounds of its float32 vertices, in their frame: the capture's is
+    relative to the mesh origin, and so are the probe positions it culls for).  Chunks are stored in the order of
     their keys (level, x cell, z cell); within a chunk triangles keep their input order.
     """
 

@@ -30,7 +30,7 @@ FACE_ROWS: NDArray[np.float64] = np.array(
 
 
 def face_clip_matrix(face: int, near: float = 0.05, far: float = math.inf) -> NDArray[np.float64]:
-    """4x4 matrix mapping ``(world - probe, 1)`` to GL clip space for cube face ``face``.
+    """4x4 matrix mapping ``(x - probe, 1)`` to GL clip space for cube face ``face``.
 
     NDC ``x = u = 2s - 1`` and ``y = v = 2t - 1`` (framebuffer row 0 = t near 0, so a readback
     needs no flip), ``w`` = distance along the face's major axis; depth maps ``near`` to -1 and
@@ -85,7 +85,8 @@ def _light_basis(l: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def light_clip_matrix(sun_dir: NDArray[np.floating], lo: NDArray[np.floating], hi: NDArray[np.floating],
                       margin: float = 1.0) -> tuple[NDArray[np.float64], float, float]:
-    """Orthographic world -> light clip matrix fitted to the box ``[lo, hi]`` seen from the sun.
+    """Orthographic light clip matrix fitted to the box ``[lo, hi]`` seen from the sun (points in
+    the frame of ``lo``, ``hi``: the capture uses the mesh origin's).
 
     ``sun_dir`` (3,) points toward the sun (any length > 0); ``lo``, ``hi`` (3,) meters.
     Returns ``(matrix, extent_xy, depth_range)``: the larger side (m) of the square light-space

@@ -10,6 +10,12 @@ depth buffer (:mod:`envcap.gpu.float_depth`), and one readback.  Each face draws
 triangle chunks that can reach its frustum (:mod:`envcap.capture.culling`;
 ``cull_chunks=False`` draws everything, same output).
 
+Precision: everything on the GPU is relative to the mesh's origin (``SceneMesh.origin``,
+float64, near the geometry): the vertices are stored relative to it, and per probe the probe's
+offset from it is computed in float64 and rounded to float32 once; the vertex shader subtracts
+it, so the positions relative to the probe, the distances and the shadow-map lookups keep the
+float32 steps of the scene's own size wherever it lies (``docs/capture.md``, "Precision").
+
 Outputs: :mod:`envcap.capture.outputs`.  Shading model and its assumptions: ``docs/capture.md``.
 """
 
@@ -54,7 +60,7 @@ class CubeCapture:
     Parameters
     ----------
     mesh:
-        The scene geometry (uploaded once).
+        The scene geometry (uploaded once, float32 relative to ``mesh.origin``).
     size:
         Face resolution ``N`` (integer >= 1).
     sky:
@@ -97,6 +103,7 @@ class CubeCapture:
                 or not (math.isfinite(chunk_size) and chunk_size > 0):
             raise ValueError(f"chunk cell size must be a finite number of meters > 0, got {chunk_size!r}")
         self.mesh = mesh
+        self.origin: NDArray[np.float64] = mesh.origin
         self.cull_chunks = bool(cull_chunks)
         self.near, self.far = float(near), float(far)
         self.sky = sky
@@ -151,7 +158,7 @@ class CubeCapture:
         self._textures: list[Any] = []   # bound to units 0, 1, ... for every probe
         self._effect_objs: list[Any] = []
 
-        inputs = EffectInputs(ctx=ctx, sky=sky, positions=mesh.positions, vertex_buffer=self._vbo,
+        inputs = EffectInputs(ctx=ctx, sky=sky, positions=mesh.positions, origin=mesh.origin, vertex_buffer=self._vbo,
                               index_buffer=self._ibo, max_texture_size=max_size)
         try:
             for effect in self.applied_effects:
@@ -189,7 +196,8 @@ class CubeCapture:
 
     def _capture_into(self, p: NDArray[np.float64], rgba: NDArray[np.float32], distance: NDArray[np.float32],
                       backfacing: NDArray[np.bool_]) -> tuple[dict[str, float], dict[str, float]]:
-        """Render the probe at ``p`` and write its outputs into the given (C-contiguous) arrays.
+        """Render the probe at ``p`` (world meters) and write its outputs into the given
+        (C-contiguous) arrays.
 
         Writing straight into the caller's arrays matters for :meth:`capture_many`: a copy into
         fresh output memory costs its page faults a second time (measured 3-10 ms per 6 x 256^2
@@ -198,7 +206,8 @@ class CubeCapture:
         n = self.size
         ctx = self.ctx
         stats = {"cull_s": 0.0, "triangles": 0.0, "draw_calls": 0.0}
-        draws = self._face_draws(p, stats)  # CPU time in stats["cull_s"], not in "render"
+        local = p - self.origin  # float64; rounded to float32 once, for the shader
+        draws = self._face_draws(local, stats)  # CPU time in stats["cull_s"], not in "render"
         t0 = time.perf_counter()
         self._fbo.use()
         self._fbo.viewport = (0, 0, 3 * n, 2 * n)
@@ -208,7 +217,7 @@ class CubeCapture:
                 ctx.enable(ctx.DEPTH_TEST)
                 ctx.disable(ctx.CULL_FACE)  # both sides: back faces are seen (and marked) from inside buildings
                 ctx.disable(ctx.BLEND)
-                set_uniforms(self._prog, {"probe": p.astype(np.float32)})
+                set_uniforms(self._prog, {"probe": local.astype(np.float32)})
                 for unit, tex in enumerate(self._textures):
                     tex.use(unit)
                 for f in range(6):
@@ -235,9 +244,9 @@ class CubeCapture:
         return {"render": t1 - t0, "readback": t2 - t1}, stats
 
     def _face_draws(self, p: NDArray[np.float64], stats: dict[str, float]) -> list[tuple[int, int]] | None:
-        """Cull and order chunks for the probe at ``p`` and write the indirect draw commands into
-        ``self._indirect``.  Returns per face (first command, number of commands); ``None``:
-        draw everything."""
+        """Cull and order chunks for the probe at ``p`` (meters, relative to the mesh origin) and
+        write the indirect draw commands into ``self._indirect``.  Returns per face (first
+        command, number of commands); ``None``: draw everything."""
         ch = self.chunks
         if ch is None:
             return [(0, 0)] * 6

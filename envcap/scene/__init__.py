@@ -1,7 +1,9 @@
 """City scenes: the scene model, TOML parsing into typed specs, building, mesh import, bundled scenes.
 
-Pipeline: :func:`load_scene` = :func:`~envcap.scene.parse.parse_scene` (TOML -> :class:`SceneSpec`)
-then :func:`~envcap.scene.build.build_scene` (-> :class:`Scene`).
+Pipeline: :func:`load_scene` = :func:`~envcap.scene.parse.parse_scene` (TOML -> :class:`SceneSpec`,
+every number within its range of :mod:`envcap.scene.limits`) then
+:func:`~envcap.scene.build.build_scene` (-> :class:`Scene`, bounded first by
+:mod:`envcap.scene.estimate`).
 """
 
 from envcap.scene.build import build_scene

@@ -4,48 +4,59 @@ walls, the ground and imported meshes as one flat-shaded mesh.
 Placement rules and the exact geometry are documented in ``docs/scenes.md``.  World frame:
 right-handed, meters, +Y up, ground at y = 0; streets run along X or Z.  Random rows draw from
 ``numpy.random.default_rng([side seed, street index, side index])``, so a scene is reproducible.
+
+Before anything is built, :func:`~envcap.scene.estimate.check_geometry_budget` bounds the number of
+buildings and quads (one-line ``ValueError`` naming the key to change).  A side that asks for
+buildings but gets none prints ``envcap: warning: ...`` on stderr, naming the side.
 """
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 
-from envcap.scene.geometry import MeshBuilder, subtract_interval
+from envcap.scene.clearing import GroundRects, clear_pieces, roadways
+from envcap.scene.estimate import check_geometry_budget
+from envcap.scene.geometry import MeshBuilder
 from envcap.scene.mesh_import import import_mesh
 from envcap.scene.model import Scene, SceneMesh
 from envcap.scene.spec import (
     BuildingSpec,
     GroundSpec,
+    MeshSpec,
     RandomBuildingsSpec,
     SceneSpec,
     SideSpec,
     StreetSpec,
     WallSpec,
     WindowsSpec,
+    side_key,
 )
-
-MIN_PIECE = 0.5
-"""Building pieces narrower than this (m, along the street) after clipping are dropped."""
 
 
 def build_scene(spec: SceneSpec) -> Scene:
-    """Build the scene's geometry; ``meta`` counts buildings, windows and lit windows."""
+    """Build the scene's geometry; ``meta`` counts buildings, windows and lit windows.
+
+    Raises ``ValueError`` before building if the scene is past its bounds
+    (:func:`~envcap.scene.estimate.check_geometry_budget`)."""
+    check_geometry_budget(spec)
     builder = MeshBuilder()
     parts: list[SceneMesh] = []
     stats = {"buildings": 0, "windows": 0, "lit_windows": 0}
-    placed: list[_Footprint] = []
+    placed = roadways([s.street for s in spec.streets])  # and every building piece, as it is placed
     for si, s in enumerate(spec.streets):
         for side_index, side in enumerate((s.side_min, s.side_max)):
             if side is None:
                 continue
-            _build_side(builder, s, side, side_index, si, spec.streets, placed, stats)
+            before = stats["buildings"]
+            _build_side(builder, s, side, side_index, si, placed, stats)
+            if stats["buildings"] == before:
+                _warn_if_empty(spec.source, side_key(si, side_index), s, side)
 
     if spec.mesh is not None:
-        m = spec.mesh
-        parts.append(import_mesh(m.path, up_axis=m.up_axis, rotation_deg=m.rotation_deg, offset=m.offset,
-                                 scale=m.scale, albedo=m.albedo))
+        parts.append(_import(spec.mesh))
 
     if spec.ground is not None:
         _build_ground(builder, spec.ground, spec.streets, parts)
@@ -61,15 +72,31 @@ def build_scene(spec: SceneSpec) -> Scene:
     )
 
 
-@dataclass
-class _Footprint:
-    """A placed building's rectangle on the ground: along-axis [a0, a1], cross-axis [c0, c1] (m)."""
+def _import(m: MeshSpec) -> SceneMesh:
+    """The ``[mesh]`` geometry; a ``ValueError`` (bad file, coordinates past the limit) names the table."""
+    try:
+        return import_mesh(m.path, up_axis=m.up_axis, rotation_deg=m.rotation_deg, offset=m.offset,
+                           scale=m.scale, albedo=m.albedo)
+    except ValueError as exc:
+        raise ValueError(f"mesh: {exc}") from None
 
-    along_axis: int
-    a0: float
-    a1: float
-    c0: float
-    c1: float
+
+def _warn_if_empty(source: str, where: str, s: StreetSpec, side: SideSpec) -> None:
+    """A warning on stderr when a side that asks for buildings places none (a ``count`` of 0 asks for none)."""
+    layout = side.layout
+    if layout is None or isinstance(layout, WallSpec):
+        return
+    if isinstance(layout, RandomBuildingsSpec):
+        if layout.count == 0:
+            return
+        room = s.street.length - side.start_offset
+        why = (f"the {room:g} m from start + start_offset to the street's end are shorter than the minimum "
+               f"width {layout.width[0]:g} m" if room < layout.width[0]
+               else "every building fell inside a roadway or a building placed before it")
+    else:
+        why = ("the list is empty" if not layout
+               else "every building fell inside a roadway or a building placed before it")
+    print(f"envcap: warning: {source + ': ' if source else ''}{where}: no building placed ({why})", file=sys.stderr)
 
 
 @dataclass
@@ -116,33 +143,8 @@ def _random_buildings(s: StreetSpec, side: SideSpec, r: RandomBuildingsSpec, rng
     return out
 
 
-def _clip(fp: _Footprint, streets: tuple[StreetSpec, ...], placed: list[_Footprint]) -> list[tuple[float, float]]:
-    """Along-street pieces of a footprint that stay out of every roadway and every placed building."""
-    a, c = fp.along_axis, 2 - fp.along_axis
-    rects = []
-    for s in streets:
-        st = s.street
-        lo, hi = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
-        lo[st.along_index], hi[st.along_index] = st.start, st.end
-        lo[st.cross_index], hi[st.cross_index] = st.facade_min, st.facade_max
-        rects.append((lo[a], hi[a], lo[c], hi[c]))
-    for p in placed:
-        lo, hi = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
-        pc = 2 - p.along_axis
-        lo[p.along_axis], hi[p.along_axis] = p.a0, p.a1
-        lo[pc], hi[pc] = p.c0, p.c1
-        rects.append((lo[a], hi[a], lo[c], hi[c]))
-    pieces = [(fp.a0, fp.a1)]
-    eps = 1e-6
-    for ra0, ra1, rc0, rc1 in rects:
-        if rc1 <= fp.c0 + eps or rc0 >= fp.c1 - eps:
-            continue
-        pieces = subtract_interval(pieces, ra0, ra1)
-    return [(x0, x1) for x0, x1 in pieces if x1 - x0 >= MIN_PIECE]
-
-
 def _build_side(builder: MeshBuilder, s: StreetSpec, side: SideSpec, side_index: int, street_index: int,
-                streets: tuple[StreetSpec, ...], placed: list[_Footprint], stats: dict[str, int]) -> None:
+                placed: GroundRects, stats: dict[str, int]) -> None:
     st = s.street
     a, c = st.along_index, st.cross_index
     sign = 1 if side_index == 0 else -1  # front-face normal along the cross axis (toward the street)
@@ -160,12 +162,11 @@ def _build_side(builder: MeshBuilder, s: StreetSpec, side: SideSpec, side_index:
     for b in buildings:
         front = plane - sign * b.setback
         back = front - sign * b.depth
-        fp = _Footprint(a, b.a0, b.a1, min(front, back), max(front, back))
-        for a0, a1 in _clip(fp, streets, placed):
-            piece = _Footprint(a, a0, a1, fp.c0, fp.c1)
-            placed.append(piece)
+        c0, c1 = min(front, back), max(front, back)
+        for a0, a1 in clear_pieces(placed, a, b.a0, b.a1, c0, c1):
+            placed.add_along(a, a0, a1, c0, c1)
             lo, hi = np.zeros(3), np.zeros(3)
-            lo[a], hi[a], lo[c], hi[c], hi[1] = a0, a1, fp.c0, fp.c1, b.height
+            lo[a], hi[a], lo[c], hi[c], hi[1] = a0, a1, c0, c1, b.height
             builder.add_boxes(lo, hi, b.albedo)
             stats["buildings"] += 1
             if b.windows and side.facade.windows is not None:
@@ -236,9 +237,9 @@ def _build_wall(builder: MeshBuilder, s: StreetSpec, side: SideSpec, wall: WallS
 
 
 def _tile_edges(lo: float, hi: float, tile: float) -> np.ndarray:
+    """Edges of ``tile``-m tiles from ``lo`` to ``hi`` (the last one shortened); their count was
+    bounded by :func:`~envcap.scene.estimate.check_geometry_budget`."""
     n = max(1, int(np.ceil((hi - lo) / tile - 1e-9)))
-    if n > 100_000:
-        raise ValueError(f"tile size {tile} m gives {n} tiles; use a larger tile")
     e = lo + tile * np.arange(n + 1, dtype=np.float64)
     e[-1] = hi
     return e

@@ -48,10 +48,10 @@ class MeshBuilder:
         hi = np.atleast_2d(np.asarray(hi, np.float64))
         plane = np.atleast_1d(np.asarray(plane, np.float64))
         q = max(lo.shape[0], hi.shape[0], plane.shape[0])
-        lo, hi = np.broadcast_to(lo, (q, 3)), np.broadcast_to(hi, (q, 3))
-        plane = np.broadcast_to(plane, (q,))
-        alb = np.broadcast_to(np.asarray(albedo, np.float64), (q, 3))
-        emi = np.broadcast_to(np.asarray(emission, np.float64), (q, 3))
+        lo, hi = _rows(lo, (q, 3)), _rows(hi, (q, 3))
+        plane = _rows(plane, (q,))
+        alb = _rows(np.asarray(albedo, np.float64), (q, 3))
+        emi = _rows(np.asarray(emission, np.float64), (q, 3))
         i, j = _INPLANE[axis]
         keep = (hi[:, i] > lo[:, i]) & (hi[:, j] > lo[:, j])
         if not np.any(keep):
@@ -110,6 +110,16 @@ class MeshBuilder:
         base = (np.arange(q, dtype=np.uint32) * 4)[:, None]
         idx = np.concatenate([base + np.array([0, 1, 2], np.uint32), base + np.array([0, 2, 3], np.uint32)], axis=1)
         return SceneMesh.from_world(pos, nrm, alb, emi, idx.reshape(-1, 3))
+
+
+def _rows(a: NDArray[np.float64], shape: tuple[int, ...]) -> NDArray[np.float64]:
+    """``a`` broadcast to ``shape`` (a view; ``a`` itself when it has that shape already: the
+    one-rectangle calls of a building row skip numpy's broadcasting machinery)."""
+    if a.shape == shape:
+        return a
+    if a.ndim == 1 and len(shape) == 2 and shape[0] == 1 and a.shape[0] == shape[1]:
+        return a.reshape(shape)  # one row: (3,) -> (1, 3)
+    return np.broadcast_to(a, shape)
 
 
 def subtract_interval(pieces: list[tuple[float, float]], lo: float, hi: float) -> list[tuple[float, float]]:

@@ -13,6 +13,10 @@ Geometry is made flat-shaded: every triangle gets its own three vertices and its
 (from the file's winding, counter-clockwise = front).  Degenerate (zero-area) triangles are
 dropped.  Vertex or face colors, if present, are read as sRGB and become linear albedo;
 otherwise the default ``albedo`` is used.  Imported meshes have no emission.
+
+Errors are one line naming the file: whatever the loader (trimesh) raises becomes a ``ValueError``
+``cannot read mesh file PATH: ...``; transformed vertices must lie within
+:data:`~envcap.scene.limits.COORDINATE_LIMIT_M` of the origin on every axis.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from envcap.scene.geometry import srgb_to_linear
+from envcap.scene.limits import COORDINATE_LIMIT_M
 from envcap.scene.model import SceneMesh
 
 MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off")
@@ -57,23 +62,42 @@ def import_transform(
 
 
 def _load_trimesh(path: Path) -> Any:
-    import trimesh  # heavy (~0.8 s): imported only when a mesh is actually read
-
+    """The file as a ``trimesh.Trimesh``; any failure of the loader (a bad file, a module trimesh
+    needs and cannot import, memory) is a one-line ``ValueError`` naming the file."""
     try:
+        import trimesh  # heavy (~0.8 s): imported only when a mesh is actually read
+
         m = trimesh.load(str(path), force="mesh", process=False)
-    except Exception as exc:  # trimesh raises many kinds for bad files
-        raise ValueError(f"cannot read mesh file {path}: {exc}") from None
+    except Exception as exc:  # trimesh raises many kinds, and its optional imports may fail
+        raise ValueError(f"cannot read mesh file {path}: {_one_line(exc)}") from None
     if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
         raise ValueError(f"mesh file {path} has no triangles")
     return m
 
 
-def _flat(m: Any, default_albedo: NDArray[np.float64], where: Path) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _one_line(exc: Exception, limit: int = 300) -> str:
+    """``Type: message`` on one line, at most ``limit`` characters."""
+    text = " ".join(f"{type(exc).__name__}: {exc}".split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _read(path: Path, default_albedo: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`_flat` of the file; a failure reading its arrays (odd visuals, bad indices) names the file."""
+    m = _load_trimesh(path)
+    try:
+        finite = bool(np.all(np.isfinite(np.asarray(m.vertices, np.float64))))
+        flat = _flat(m, default_albedo) if finite else None
+    except Exception as exc:
+        raise ValueError(f"cannot read mesh file {path}: {_one_line(exc)}") from None
+    if flat is None:
+        raise ValueError(f"mesh file {path} has NaN or Inf vertex positions")
+    return flat
+
+
+def _flat(m: Any, default_albedo: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Per-corner positions (T, 3, 3) and albedo (T, 3, 3) of a trimesh."""
     v = np.asarray(m.vertices, np.float64)
     f = np.asarray(m.faces, np.int64)
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"mesh file {where} has NaN or Inf vertex positions")
     tri = v[f]
     alb = np.broadcast_to(default_albedo, tri.shape).copy()
     kind = getattr(m.visual, "kind", None)
@@ -112,7 +136,8 @@ def import_mesh(
     """Load a mesh file (or a directory of PLY files, concatenated) as a flat-shaded SceneMesh.
 
     See the module docstring for the transform order.  ``albedo`` (linear RGB in [0, 1]) is used
-    where the file has no vertex or face colors.  Raises ``FileNotFoundError`` / ``ValueError``.
+    where the file has no vertex or face colors.  Raises ``FileNotFoundError`` / ``ValueError``
+    (one line naming the file; also for vertices past :data:`~envcap.scene.limits.COORDINATE_LIMIT_M`).
     """
     m4 = import_transform(up_axis, rotation_deg, scale, offset)
     default_albedo = np.asarray(albedo, np.float64)
@@ -120,12 +145,18 @@ def import_mesh(
         raise ValueError(f"albedo must be 3 values in [0, 1], got {albedo!r}")
     tris, albs = [], []
     for f in mesh_files(Path(path)):
-        t, a = _flat(_load_trimesh(f), default_albedo, f)
+        t, a = _read(f, default_albedo)
         tris.append(t)
         albs.append(a)
     tri = np.concatenate(tris)
     alb = np.concatenate(albs)
-    tri = tri @ m4[:3, :3].T + m4[:3, 3]
+    with np.errstate(over="ignore", invalid="ignore"):
+        tri = tri @ m4[:3, :3].T + m4[:3, 3]
+        reach = float(np.max(np.abs(tri)))
+    if not reach <= COORDINATE_LIMIT_M:  # also NaN / inf (overflow)
+        raise ValueError(f"{path}: vertices reach {reach:.10g} m after the import transform (scale {scale:g}, "
+                         f"offset {list(offset)}), beyond the coordinate limit of +-{COORDINATE_LIMIT_M:g} m; "
+                         f"change scale or offset")
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(n, axis=1)
     scale_ref = max(float(np.abs(tri).max()), 1.0)

@@ -1,7 +1,9 @@
 """Scene TOML -> :class:`~envcap.scene.spec.SceneSpec`: every key read, checked and typed once.
 
 Errors raise ``ValueError`` naming the key (``streets[1].side_min.random: unknown key(s) ...``);
-unknown keys are errors.  The format is documented in ``docs/scenes.md``.
+unknown keys are errors.  Every number is checked against its own range (the constants of
+:mod:`envcap.scene.limits`; the table in ``docs/scenes.md``, "Ranges and limits").  The format is
+documented in ``docs/scenes.md``.
 """
 
 from __future__ import annotations
@@ -25,7 +27,20 @@ from envcap.scene.spec import (
     WallSpec,
     WindowsSpec,
 )
+from envcap.scene.limits import (
+    ANGLE_LIMIT_DEG,
+    BUILDING_LIMIT,
+    COORDINATE_LIMIT_M,
+    FIRST_FLOOR_LIMIT,
+    GROUND_EXTENT_LIMIT_M,
+    MESH_SCALE_RANGE,
+    MIN_PIECE_M,
+    SEED_LIMIT,
+    SIZE_LIMIT_M,
+    SPAN_LIMIT_M,
+)
 from envcap.scene.table import Table
+from envcap.sky.checks import RGB_LIMIT
 from envcap.sky.registry import SkySpec, parse_sky_spec
 
 DEFAULT_GROUND_EXTENT = 1000.0
@@ -37,10 +52,10 @@ def read_toml(path: Path) -> dict[str, Any]:
     try:
         with open(path, "rb") as f:
             return tomllib.load(f)
-    except tomllib.TOMLDecodeError as exc:  # message carries "(at line L, column C)"
-        raise ValueError(f"{path}: invalid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
         raise ValueError(f"{path}: not a UTF-8 text file ({exc})") from None
+    except ValueError as exc:  # TOMLDecodeError: "(at line L, column C)"; or an integer of > 4300 digits
+        raise ValueError(f"{path}: invalid TOML: {exc}") from None
 
 
 def parse_scene(data: dict[str, Any], base_dir: Path | None = None, default_name: str = "scene",
@@ -97,9 +112,9 @@ def _parse_mesh(t: Table, base_dir: Path | None) -> MeshSpec:
     spec = MeshSpec(
         path=f,
         up_axis=t.string("up_axis", "y", choices=("y", "z")),
-        rotation_deg=t.number("rotation_deg", 0.0),
-        offset=t.vector("offset", 3, (0.0, 0.0, 0.0)),
-        scale=t.number("scale", 1.0, positive=True),
+        rotation_deg=t.number("rotation_deg", 0.0, min=-ANGLE_LIMIT_DEG, max=ANGLE_LIMIT_DEG),
+        offset=t.vector("offset", 3, (0.0, 0.0, 0.0), min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M),
+        scale=t.number("scale", 1.0, min=MESH_SCALE_RANGE[0], max=MESH_SCALE_RANGE[1]),
         albedo=t.vector("albedo", 3, (0.5, 0.5, 0.5), min=0.0, max=1.0, gray=True),
     )
     t.close()
@@ -108,19 +123,19 @@ def _parse_mesh(t: Table, base_dir: Path | None) -> MeshSpec:
 
 def _parse_windows(t: Table) -> WindowsSpec:
     w = WindowsSpec(
-        width=t.number("width", 1.2, positive=True),
-        height=t.number("height", 1.6, positive=True),
-        spacing=t.number("spacing", 3.0, positive=True),
-        floor_height=t.number("floor_height", 3.2, positive=True),
-        sill=t.number("sill", 0.9, min=0.0),
-        first_floor=t.integer("first_floor", 0, min=0),
-        top_margin=t.number("top_margin", 0.5, min=0.0),
+        width=t.number("width", 1.2, positive=True, max=SIZE_LIMIT_M),
+        height=t.number("height", 1.6, positive=True, max=SIZE_LIMIT_M),
+        spacing=t.number("spacing", 3.0, positive=True, max=SIZE_LIMIT_M),
+        floor_height=t.number("floor_height", 3.2, positive=True, max=SIZE_LIMIT_M),
+        sill=t.number("sill", 0.9, min=0.0, max=SIZE_LIMIT_M),
+        first_floor=t.integer("first_floor", 0, min=0, max=FIRST_FLOOR_LIMIT),
+        top_margin=t.number("top_margin", 0.5, min=0.0, max=SIZE_LIMIT_M),
         albedo=t.vector("albedo", 3, (0.04, 0.05, 0.06), min=0.0, max=1.0, gray=True),
-        frame=t.number("frame", 0.0, min=0.0),
+        frame=t.number("frame", 0.0, min=0.0, max=SIZE_LIMIT_M),
         frame_albedo=t.vector("frame_albedo", 3, (0.6, 0.6, 0.6), min=0.0, max=1.0, gray=True),
         offset=t.number("offset", 0.015, positive=True, max=0.5),
         emissive_fraction=t.number("emissive_fraction", 0.0, min=0.0, max=1.0),
-        emission=t.vector("emission", 3, (0.0, 0.0, 0.0), min=0.0),
+        emission=t.vector("emission", 3, (0.0, 0.0, 0.0), min=0.0, max=RGB_LIMIT),
     )
     t.close()
     if w.width + 2 * w.frame >= w.spacing:
@@ -156,15 +171,18 @@ def _parse_street(t: Table, index: int) -> StreetSpec:
     if t.has("start") or t.has("end"):
         if t.has("length") or t.has("along_center"):
             raise ValueError(f"{t.where}: give either start/end or along_center/length, not both")
-        start, end = t.number("start"), t.number("end")
+        start = t.number("start", min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
+        end = t.number("end", min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
     else:
-        length = t.number("length", positive=True)
-        mid = t.number("along_center", 0.0)
+        length = t.number("length", positive=True, max=SPAN_LIMIT_M)
+        mid = t.number("along_center", 0.0, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
         start, end = mid - 0.5 * length, mid + 0.5 * length
+        _check_coordinates(t.where, "along_center +- length/2", (start, end))
     if not end > start:
         raise ValueError(f"{t.where}: end ({end}) must be larger than start ({start})")
-    width = t.number("width", positive=True)
-    cross = t.number("cross", 0.0)
+    width = t.number("width", positive=True, max=SIZE_LIMIT_M)
+    cross = t.number("cross", 0.0, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
+    _check_coordinates(t.where, "cross +- width/2", (cross - 0.5 * width, cross + 0.5 * width))
     probe_line = t.raw("probe_line", None)
     if probe_line is not None:
         probe_line = t.number("probe_line", min=cross - 0.5 * width, max=cross + 0.5 * width)
@@ -173,16 +191,26 @@ def _parse_street(t: Table, index: int) -> StreetSpec:
     sides = []
     for key in ("side_min", "side_max"):
         st = t.sub(key)
-        sides.append(None if st is None else _parse_side(st, facade_raw, street_facade))
+        sides.append(None if st is None else _parse_side(st, facade_raw, street_facade, end - start))
     t.close()
     street = Street(name=name, axis=axis, start=start, end=end, facade_min=cross - 0.5 * width,
                     facade_max=cross + 0.5 * width, ground=0.0, center=probe_line)
     return StreetSpec(street, sides[0], sides[1])
 
 
-def _parse_side(t: Table, street_facade_raw: dict[str, Any], street_facade: FacadeSpec) -> SideSpec:
-    seed = t.integer("seed", 0)
-    start_offset = t.number("start_offset", 0.0, min=0.0)
+def _check_coordinates(where: str, what: str, values: tuple[float, ...]) -> None:
+    """Derived world coordinates (m) within the coordinate limit."""
+    if not all(abs(v) <= COORDINATE_LIMIT_M for v in values):
+        raise ValueError(f"{where}: {what} reaches {max(abs(v) for v in values):.10g} m, beyond the coordinate "
+                         f"limit of +-{COORDINATE_LIMIT_M:g} m")
+
+
+def _parse_side(t: Table, street_facade_raw: dict[str, Any], street_facade: FacadeSpec, length: float) -> SideSpec:
+    seed = t.integer("seed", 0, min=0, max=SEED_LIMIT)
+    start_offset = t.number("start_offset", 0.0, min=0.0, max=SPAN_LIMIT_M)
+    if not start_offset < length:
+        raise ValueError(f"{t.where}.start_offset: must be smaller than the street's length ({length:g} m), "
+                         f"got {start_offset:g}")
     side_facade_raw = t.raw("facade", None)
     facade = street_facade
     if side_facade_raw is not None:
@@ -211,12 +239,12 @@ def _parse_side(t: Table, street_facade_raw: dict[str, Any], street_facade: Faca
 
 def _parse_building(b: Table, facade: FacadeSpec) -> BuildingSpec:
     spec = BuildingSpec(
-        gap=b.number("gap", 0.0, min=0.0),
-        width=b.number("width", positive=True),
+        gap=b.number("gap", 0.0, min=0.0, max=SPAN_LIMIT_M),
+        width=b.number("width", min=MIN_PIECE_M, max=SIZE_LIMIT_M),
         albedo=b.vector("albedo", 3, facade.albedo, min=0.0, max=1.0, gray=True),
-        height=b.number("height", positive=True),
-        depth=b.number("depth", 12.0, positive=True),
-        setback=b.number("setback", 0.0, min=0.0),
+        height=b.number("height", positive=True, max=SIZE_LIMIT_M),
+        depth=b.number("depth", 12.0, positive=True, max=SIZE_LIMIT_M),
+        setback=b.number("setback", 0.0, min=0.0, max=SIZE_LIMIT_M),
         windows=b.boolean("windows", True),
     )
     b.close()
@@ -225,13 +253,13 @@ def _parse_building(b: Table, facade: FacadeSpec) -> BuildingSpec:
 
 def _parse_random(r: Table) -> RandomBuildingsSpec:
     spec = RandomBuildingsSpec(
-        count=r.integer("count", -1, min=0) if r.has("count") else None,
-        width=r.range("width", positive=True),
-        height=r.range("height", positive=True),
-        depth=r.range("depth", (10.0, 15.0), positive=True),
-        setback=r.range("setback", (0.0, 0.0), min=0.0),
+        count=r.integer("count", -1, min=0, max=BUILDING_LIMIT) if r.has("count") else None,
+        width=r.range("width", min=MIN_PIECE_M, max=SIZE_LIMIT_M),
+        height=r.range("height", positive=True, max=SIZE_LIMIT_M),
+        depth=r.range("depth", (10.0, 15.0), positive=True, max=SIZE_LIMIT_M),
+        setback=r.range("setback", (0.0, 0.0), min=0.0, max=SIZE_LIMIT_M),
         gap_probability=r.number("gap_probability", 0.0, min=0.0, max=1.0),
-        gap_width=r.range("gap_width", (2.0, 6.0), positive=True),
+        gap_width=r.range("gap_width", (2.0, 6.0), positive=True, max=SPAN_LIMIT_M),
     )
     r.close()
     return spec
@@ -239,11 +267,11 @@ def _parse_random(r: Table) -> RandomBuildingsSpec:
 
 def _parse_wall(t: Table, facade: FacadeSpec) -> WallSpec:
     spec = WallSpec(
-        height=t.number("height", positive=True),
-        tile=t.number("tile", 2.0, positive=True),
+        height=t.number("height", positive=True, max=SIZE_LIMIT_M),
+        tile=t.number("tile", 2.0, positive=True, max=SIZE_LIMIT_M),
         albedo=t.vector("albedo", 3, facade.albedo, min=0.0, max=1.0, gray=True),
         albedo2=t.vector("albedo2", 3, (0.1, 0.1, 0.1), min=0.0, max=1.0, gray=True),
-        thickness=t.number("thickness", 0.5, positive=True),
+        thickness=t.number("thickness", 0.5, positive=True, max=SIZE_LIMIT_M),
     )
     t.close()
     return spec
@@ -256,10 +284,10 @@ def _parse_ground(t: Table | None) -> GroundSpec | None:
         spec.close()
         return None
     albedo = spec.vector("albedo", 3, (0.18, 0.18, 0.18), min=0.0, max=1.0, gray=True)
-    extent = spec.number("extent", DEFAULT_GROUND_EXTENT, positive=True)
-    center = spec.vector("center", 2, None) if spec.has("center") else None
-    checker = spec.number("checker", 0.0, min=0.0)
+    extent = spec.number("extent", DEFAULT_GROUND_EXTENT, positive=True, max=GROUND_EXTENT_LIMIT_M)
+    center = spec.vector("center", 2, None, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M) if spec.has("center") else None
+    checker = spec.number("checker", 0.0, min=0.0, max=GROUND_EXTENT_LIMIT_M)
     albedo2 = spec.vector("albedo2", 3, (0.08, 0.08, 0.08), min=0.0, max=1.0, gray=True)
-    checker_extent = spec.number("checker_extent", min(extent, 200.0), positive=True)
+    checker_extent = spec.number("checker_extent", min(extent, 200.0), positive=True, max=GROUND_EXTENT_LIMIT_M)
     spec.close()
     return GroundSpec(albedo, extent, center, checker, albedo2, checker_extent)

@@ -102,6 +102,15 @@ class SideSpec:
     layout: Layout
 
 
+SIDE_KEYS: tuple[str, str] = ("side_min", "side_max")
+"""The keys of a street's two sides, in build order (index 0 faces +cross, index 1 faces -cross)."""
+
+
+def side_key(street_index: int, side_index: int) -> str:
+    """The dotted location of a side in the scene file, as errors name it: ``streets[0].side_min``."""
+    return f"streets[{street_index}].{SIDE_KEYS[side_index]}"
+
+
 @dataclass(frozen=True)
 class StreetSpec:
     """A street (its planes and probe line) and what stands on its two sides."""

@@ -27,9 +27,10 @@ when a scene lists it.  It declares:
   - ``glsl_radiance``: after ``L = v_albedo / PI * E``; changes ``vec3 L``, the radiance
     leaving the surface toward the probe (front faces only; back faces stay 0).
 
-  Both code hooks can read ``n`` (unit surface normal), ``v_world`` (surface point, world
-  meters), ``v_rel`` (surface point minus probe), ``dist`` (``|v_rel|``), ``v_albedo``
-  (diffuse reflectance) and ``v_emission`` (emitted radiance).
+  Both code hooks can read ``n`` (unit surface normal), ``v_local`` (surface point in meters
+  relative to the mesh origin ``EffectInputs.origin``: world positions never reach the GPU),
+  ``v_rel`` (surface point minus probe), ``dist`` (``|v_rel|``), ``v_albedo`` (diffuse
+  reflectance) and ``v_emission`` (emitted radiance).
 """
 
 from __future__ import annotations
@@ -98,7 +99,9 @@ def positive_int(what: str) -> Callable[[Any], int]:
 class EffectInputs:
     """What an effect's per-set pass can use.
 
-    ``positions`` (V, 3) float32 mesh vertices (world meters).  ``vertex_buffer``: the mesh on the
+    ``positions`` (V, 3) float32 mesh vertices in meters relative to ``origin`` ((3,) float64,
+    world meters: :attr:`envcap.scene.model.SceneMesh.origin`); matrices and points an effect
+    gives the shader must be relative to ``origin`` too.  ``vertex_buffer``: the mesh on the
     GPU, 12 float32 per vertex (position, normal, albedo, emission: moderngl format
     ``"3f 3f 3f 3f"``); ``index_buffer``: uint32 triangles (in chunk order); both ``None``
     when the mesh has no triangles.  ``max_texture_size``: ``GL_MAX_TEXTURE_SIZE`` of ``ctx``.
@@ -107,6 +110,7 @@ class EffectInputs:
     ctx: moderngl.Context
     sky: SkyLike | None
     positions: NDArray[np.float32]
+    origin: NDArray[np.float64]
     vertex_buffer: moderngl.Buffer | None
     index_buffer: moderngl.Buffer | None
     max_texture_size: int

@@ -25,7 +25,7 @@ GLSL_IRRADIANCE = """\
 float c = max(dot(n, sun_dir), 0.0);
 float vis = 1.0;
 #ifdef SUN_SHADOWS
-if (c > 0.0) vis = sun_visibility(v_world, n, c);
+if (c > 0.0) vis = sun_visibility(v_local, n, c);
 #endif
 E += sun_E * (c * vis);
 """

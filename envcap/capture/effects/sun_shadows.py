@@ -5,10 +5,11 @@
   (``shaders/capture/shadow_lookup.glsl``).
 * Parameters: ``resolution`` (default 2048) shadow-map texels per side (square);
   ``bounds`` (default ``None``: the mesh bounds) the world box ``(lo (3,), hi (3,))`` meters it
-  covers, padded 1 m (:func:`envcap.capture.projection.light_clip_matrix`).
+  covers, padded 1 m (:func:`envcap.capture.projection.light_clip_matrix`).  The light frustum is
+  fitted relative to the mesh origin (``EffectInputs.origin``), like the vertices it draws.
 * Per-set pass ``shadow_map``: the mesh drawn depth-only (24-bit) into an orthographic
   light-space map.  Points outside the map are lit.
-* Uniforms: ``shadow_map`` (compare sampler), ``light_clip`` (world -> light clip),
+* Uniforms: ``shadow_map`` (compare sampler), ``light_clip`` (origin-relative -> light clip),
   ``shadow_texel`` (1 / resolution) and the bias: receivers move 1.5 shadow texels along their
   normal (``shadow_normal_offset``, m); depth bias of half a texel (``shadow_bias_const``) plus
   one texel per unit tan(incidence) (``shadow_bias_slope``), in depth units (docs/capture.md).
@@ -47,8 +48,8 @@ def _prepare(inputs: EffectInputs, params: Mapping[str, Any]) -> EffectSetup:
     bounds: Sequence[np.ndarray] | None = params["bounds"]
     if bounds is None:
         lo, hi = inputs.positions.min(axis=0).astype(np.float64), inputs.positions.max(axis=0).astype(np.float64)
-    else:
-        lo, hi = bounds
+    else:  # world -> relative to the mesh origin, in float64
+        lo, hi = bounds[0] - inputs.origin, bounds[1] - inputs.origin
     ctx = inputs.ctx
     m, extent, depth_range = light_clip_matrix(np.asarray(inputs.sky.sun.direction, dtype=np.float64), lo, hi)
     texel_m = extent / res
