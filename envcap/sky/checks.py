@@ -14,9 +14,23 @@ from numpy.typing import NDArray
 
 from envcap.core.checks import finite_float
 
+RGB_LIMIT = 1.0e12
+"""Largest radiance (cd/m^2-scaled) or illuminance (lux) a scene key may give: ``[sky] radiance``,
+``sun.illuminance``, window ``emission``.  500 times the sun's disk radiance (~2e9 cd/m^2),
+10^7 times its illuminance: larger is a unit mistake, and every value derived from it (texel
+averages, the splatted sun, prefiltered sums) stays far inside float32 range."""
 
-def rgb_triple(value: Any, name: str) -> NDArray[np.float64]:
-    """A non-negative finite RGB triple, shape ``(3,)`` float64, from a number (grey) or a 3-sequence."""
+SCALE_LIMIT = 1.0e6
+"""Largest ``[sky] scale``: a lat-long file in relative units (1 = white) becomes cd/m^2 with
+scales up to ~10^5; the scaled radiance must also stay below :data:`RGB_LIMIT`."""
+
+AZIMUTH_LIMIT_DEG = 360.0
+"""Largest absolute azimuth (degrees): ``sun_azimuth_deg``, ``sun.azimuth_deg``."""
+
+
+def rgb_triple(value: Any, name: str, limit: float | None = None) -> NDArray[np.float64]:
+    """A non-negative finite RGB triple, shape ``(3,)`` float64, from a number (grey) or a 3-sequence;
+    each channel at most ``limit`` if given (scene keys pass :data:`RGB_LIMIT`)."""
     if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
         arr = np.full(3, float(value))
     else:
@@ -28,6 +42,8 @@ def rgb_triple(value: Any, name: str) -> NDArray[np.float64]:
             raise ValueError(f"{name} must be a number or [r, g, b], got {value!r}")
     if not np.all(np.isfinite(arr)) or np.any(arr < 0):
         raise ValueError(f"{name} must be finite and non-negative, got {value!r}")
+    if limit is not None and np.any(arr > limit):
+        raise ValueError(f"{name} must be at most {limit:g} per channel, got {value!r}")
     return arr
 
 
@@ -39,10 +55,18 @@ def check_elevation(e: Any, name: str = "sun elevation") -> float:
     return e
 
 
-def check_scale(value: Any) -> float:
-    """A non-negative finite radiance scale factor."""
-    s = finite_float(value, "scale")
-    if s < 0:
-        raise ValueError(f"scale must be non-negative, got {s:g}")
+def check_azimuth(value: Any, name: str) -> float:
+    """An azimuth in degrees within [-:data:`AZIMUTH_LIMIT_DEG`, +:data:`AZIMUTH_LIMIT_DEG`]."""
+    a = finite_float(value, name)
+    if not abs(a) <= AZIMUTH_LIMIT_DEG:
+        raise ValueError(f"{name} must be in [-{AZIMUTH_LIMIT_DEG:g}, {AZIMUTH_LIMIT_DEG:g}] degrees, got {a:g}")
+    return a
+
+
+def check_scale(value: Any, name: str = "scale") -> float:
+    """A radiance scale factor in [0, :data:`SCALE_LIMIT`]."""
+    s = finite_float(value, name)
+    if not 0 <= s <= SCALE_LIMIT:
+        raise ValueError(f"{name} must be in [0, {SCALE_LIMIT:g}], got {s:g}")
     return s
 

@@ -4,7 +4,8 @@ Scene parameters (``[sky]`` keys; errors name the key):
 
 * ``file`` (required): the image (OpenEXR LatLong convention, see :mod:`envcap.core.latlong`),
   relative to the scene file's directory unless absolute.  Radiance is taken in the file's units.
-* ``scale`` (default 1): non-negative factor on the image.
+* ``scale`` (default 1): factor on the image, in [0, 10^6] (:data:`envcap.sky.checks.SCALE_LIMIT`);
+  the scaled image must stay at most :data:`envcap.sky.checks.RGB_LIMIT`.
 * ``sanitize`` (default false): replace NaN / Inf / negative texels instead of rejecting the file.
 * ``sun`` (optional): an analytic sun, the table of :class:`envcap.sky.sun.SunTable`.  The image
   should not contain the sun then (it would count twice).
@@ -22,7 +23,7 @@ from numpy.typing import NDArray
 from envcap.core.latlong import latlong_to_cube, load_latlong, sample_latlong
 from envcap.sky.base import Sky, SkyModel
 from envcap.core.checks import unit_directions
-from envcap.sky.checks import check_scale
+from envcap.sky.checks import RGB_LIMIT, check_scale
 from envcap.sky.sun import Sun, SunTable, splat_sun
 
 
@@ -91,13 +92,18 @@ class LatLongParams:
         sanitize = table.get("sanitize", False)
         if not isinstance(sanitize, bool):
             raise ValueError(f"sky.sanitize must be true or false, got {sanitize!r}")
-        return cls(file, path, check_scale(table.get("scale", 1.0)), sanitize, sun)
+        return cls(file, path, check_scale(table.get("scale", 1.0), "sky.scale"), sanitize, sun)
 
     def build(self) -> LatLongSky:
-        """Read the image (``FileNotFoundError`` / ``ValueError`` naming the file) and make the sky."""
+        """Read the image (``FileNotFoundError`` / ``ValueError`` naming the file) and make the sky;
+        the scaled image must stay at most :data:`~envcap.sky.checks.RGB_LIMIT`."""
         sun = None if self.sun is None else self.sun.sun()
-        return LatLongSky(load_latlong(self.path, sanitize=self.sanitize), self.scale, sun, self.file,
-                          None if self.sun is None else self.sun.table)
+        image = load_latlong(self.path, sanitize=self.sanitize)
+        peak = float(np.max(image)) * self.scale if image.size else 0.0
+        if not peak <= RGB_LIMIT:
+            raise ValueError(f"sky.scale: {self.path} peaks at {float(np.max(image)):g}, times scale {self.scale:g} "
+                             f"is past the radiance limit of {RGB_LIMIT:g}; lower sky.scale")
+        return LatLongSky(image, self.scale, sun, self.file, None if self.sun is None else self.sun.table)
 
 
 LATLONG = SkyModel(

@@ -4,8 +4,8 @@ Scene parameters (``[sky]`` keys; errors name the key):
 
 * ``turbidity`` (required): atmospheric turbidity ``T`` in [2, 10] (the paper's fitted range).
 * ``sun_elevation_deg`` (required): sun elevation in [0, 90] degrees.
-* ``sun_azimuth_deg`` (default 0): azimuth in degrees from +Z towards +X.
-* ``scale`` (default 1): non-negative factor on sky and sun.
+* ``sun_azimuth_deg`` (default 0): azimuth in degrees from +Z towards +X, in [-360, 360].
+* ``scale`` (default 1): factor on sky and sun, in [0, 10^6] (:data:`envcap.sky.checks.SCALE_LIMIT`).
 * ``ground_albedo`` (default 0.2): diffuse reflectance in [0, 1] of the ground below the horizon.
 
 Radiance in cd/m^2-scaled linear Rec.709 RGB; derivation and checks in ``docs/sky.md``.
@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from envcap.sky.base import Sky, SkyModel
 from envcap.core.checks import finite_float, unit_directions
-from envcap.sky.checks import check_elevation, check_scale
+from envcap.sky.checks import check_azimuth, check_elevation, check_scale
 from envcap.sky.sun import SOLAR_ILLUMINANCE_EXTRATERRESTRIAL, SUN_ANGULAR_RADIUS, Sun, direction_from_angles
 
 DEFAULT_GROUND_ALBEDO: float = 0.2
@@ -53,19 +53,19 @@ _ZENITH_y = np.array([[0.00275, -0.00610, 0.00317, 0.0], [-0.04214, 0.08970, -0.
                       [0.15346, -0.26756, 0.06670, 0.26688]])
 
 
-def check_turbidity(t: Any) -> float:
+def check_turbidity(t: Any, name: str = "turbidity") -> float:
     """A turbidity inside :data:`TURBIDITY_RANGE`."""
-    t = finite_float(t, "turbidity")
+    t = finite_float(t, name)
     if not TURBIDITY_RANGE[0] <= t <= TURBIDITY_RANGE[1]:
-        raise ValueError(f"turbidity must be in [{TURBIDITY_RANGE[0]:g}, {TURBIDITY_RANGE[1]:g}], got {t:g}")
+        raise ValueError(f"{name} must be in [{TURBIDITY_RANGE[0]:g}, {TURBIDITY_RANGE[1]:g}], got {t:g}")
     return t
 
 
-def check_ground_albedo(value: Any) -> float:
+def check_ground_albedo(value: Any, name: str = "ground albedo") -> float:
     """A ground albedo in [0, 1]."""
-    a = finite_float(value, "ground albedo")
+    a = finite_float(value, name)
     if not 0.0 <= a <= 1.0:
-        raise ValueError(f"ground albedo must be in [0, 1], got {a:g}")
+        raise ValueError(f"{name} must be in [0, 1], got {a:g}")
     return a
 
 
@@ -148,7 +148,7 @@ class PreethamSky(Sky):
                  scale: float = 1.0, ground_albedo: float = DEFAULT_GROUND_ALBEDO, supersample: int = 4) -> None:
         self.turbidity = check_turbidity(turbidity)
         self.sun_elevation_deg = check_elevation(sun_elevation_deg)
-        self.sun_azimuth_deg = finite_float(sun_azimuth_deg, "sun azimuth")
+        self.sun_azimuth_deg = check_azimuth(sun_azimuth_deg, "sun azimuth")
         self.scale = check_scale(scale)
         self.ground_albedo = check_ground_albedo(ground_albedo)
         self.supersample = int(supersample)
@@ -215,11 +215,12 @@ class PreethamParams:
     @classmethod
     def parse(cls, table: dict[str, Any], base_dir: Path | None = None) -> "PreethamParams":
         """Check the values of a key-checked ``[sky]`` table (``base_dir`` is unused: no files)."""
-        return cls(turbidity=check_turbidity(table["turbidity"]),
-                   sun_elevation_deg=check_elevation(table["sun_elevation_deg"]),
-                   sun_azimuth_deg=finite_float(table.get("sun_azimuth_deg", 0.0), "sun azimuth"),
-                   scale=check_scale(table.get("scale", 1.0)),
-                   ground_albedo=check_ground_albedo(table.get("ground_albedo", DEFAULT_GROUND_ALBEDO)))
+        return cls(turbidity=check_turbidity(table["turbidity"], "sky.turbidity"),
+                   sun_elevation_deg=check_elevation(table["sun_elevation_deg"], "sky.sun_elevation_deg"),
+                   sun_azimuth_deg=check_azimuth(table.get("sun_azimuth_deg", 0.0), "sky.sun_azimuth_deg"),
+                   scale=check_scale(table.get("scale", 1.0), "sky.scale"),
+                   ground_albedo=check_ground_albedo(table.get("ground_albedo", DEFAULT_GROUND_ALBEDO),
+                                                     "sky.ground_albedo"))
 
     def build(self) -> PreethamSky:
         return PreethamSky(self.turbidity, self.sun_elevation_deg, self.sun_azimuth_deg, self.scale,

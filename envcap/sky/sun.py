@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from envcap.core.checks import check_table_keys, finite_float, positive_int
 from envcap.core.cube import direction_to_texel, texel_solid_angle
-from envcap.sky.checks import check_elevation, rgb_triple
+from envcap.sky.checks import RGB_LIMIT, check_azimuth, check_elevation, rgb_triple
 
 SUN_ANGULAR_RADIUS: float = math.radians(0.2665)
 """Angular radius of the solar disk, radians (0.2665 deg, mean Earth-Sun distance)."""
@@ -107,8 +107,9 @@ class Sun:
 class SunTable:
     """A sky's ``sun`` sub-table (uniform and lat-long skies), checked.
 
-    ``elevation_deg`` in [0, 90], ``azimuth_deg`` from +Z towards +X (default 0),
-    ``illuminance`` (3,) RGB lux at normal incidence, ``angular_radius_deg`` (default 0.2665).
+    ``elevation_deg`` in [0, 90], ``azimuth_deg`` from +Z towards +X in [-360, 360] (default 0),
+    ``illuminance`` (3,) RGB lux at normal incidence in [0, 10^12] (:data:`~envcap.sky.checks.RGB_LIMIT`),
+    ``angular_radius_deg`` in (0, 90) (default 0.2665).
     ``table`` is the sub-table exactly as written; skies echo it in :meth:`Sky.spec` (manifests).
     """
 
@@ -126,10 +127,10 @@ class SunTable:
         """Check ``table`` (keys, ranges); errors name ``where`` (e.g. ``"sky.sun"``)."""
         check_table_keys(table, set(cls.REQUIRED), set(cls.OPTIONAL), where)
         e = check_elevation(table["elevation_deg"], f"{where}.elevation_deg")
-        a = finite_float(table.get("azimuth_deg", 0.0), f"{where}.azimuth_deg")
+        a = check_azimuth(table.get("azimuth_deg", 0.0), f"{where}.azimuth_deg")
         r_deg = finite_float(table.get("angular_radius_deg", math.degrees(SUN_ANGULAR_RADIUS)),
                              f"{where}.angular_radius_deg")
-        illuminance = rgb_triple(table["illuminance"], "sun illuminance")
+        illuminance = rgb_triple(table["illuminance"], f"{where}.illuminance", RGB_LIMIT)
         cls._sun(e, a, illuminance, r_deg)  # the radius range, with the message Sun gives
         return cls(e, a, tuple(float(v) for v in illuminance), r_deg, dict(table))
 

@@ -2,7 +2,8 @@
 
 Scene parameters (``[sky]`` keys; errors name the key):
 
-* ``radiance`` (required): linear RGB radiance, cd/m^2-scaled; a number means grey.
+* ``radiance`` (required): linear RGB radiance, cd/m^2-scaled, in [0, 10^12]
+  (:data:`envcap.sky.checks.RGB_LIMIT`); a number means grey.
 * ``sun`` (optional): an analytic sun, the table of :class:`envcap.sky.sun.SunTable`
   (``elevation_deg``, ``illuminance`` in lux, ``azimuth_deg``, ``angular_radius_deg``).
 """
@@ -18,7 +19,7 @@ from numpy.typing import NDArray
 
 from envcap.sky.base import Sky, SkyModel
 from envcap.core.checks import unit_directions
-from envcap.sky.checks import rgb_triple
+from envcap.sky.checks import RGB_LIMIT, rgb_triple
 from envcap.sky.sun import Sun, SunTable
 
 
@@ -59,7 +60,7 @@ class UniformParams:
     def parse(cls, table: dict[str, Any], base_dir: Path | None = None) -> "UniformParams":
         """Check the values of a key-checked ``[sky]`` table (``base_dir`` is unused: no files)."""
         sun = None if table.get("sun") is None else SunTable.parse(table["sun"], "sky.sun")
-        radiance = rgb_triple(table["radiance"], "uniform sky radiance")
+        radiance = rgb_triple(table["radiance"], "sky.radiance", RGB_LIMIT)
         return cls(tuple(float(v) for v in radiance), sun)
 
     def build(self) -> UniformSky:
