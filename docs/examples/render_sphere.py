@@ -19,10 +19,11 @@ import sys
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # run from a checkout without install
 
-from envcap import synthetic_street as ss  # noqa: E402
-from envcap.core.atomic import atomic_output_file
-from envcap.gpu.gl import CubeArrayTexture, create_context, cube_texture
-from envcap.gpu.glsl_harness import set_uniforms
+from envcap.runtime import synthetic_street as ss  # noqa: E402
+from envcap.outputs import atomic_output_file
+from envcap.gpu.context import create_context
+from envcap.gpu.cube_array import CubeArrayTexture, cube_texture
+from envcap.gpu.uniforms import set_uniforms
 from envcap.core.resources import expand_includes
 
 HERE = Path(__file__).resolve().parent
@@ -54,12 +55,12 @@ def main() -> int:
     pt.use(3)
     st.use(4)
     # sphere 4.5 m off the probe line, near a facade, between probes: where parallax matters
-    uni = {**street.uniforms(powers), "eye": (10.0, 2.2, -3.0), "center": (15.0, 1.3, 3.8), "radius": 1.3}
+    uni = {**street.uniforms(powers).values(), "eye": (10.0, 2.2, -3.0), "center": (15.0, 1.3, 3.8), "radius": 1.3}
     halves = []
     for par in (0, 1):
         src = frag_src.replace("#version 430", f"#version 430\n#define PARALLAX {par}", 1)
         prog = ctx.program(vertex_shader=VERT, fragment_shader=src)
-        set_uniforms(prog, uni)
+        set_uniforms(prog, uni, sources=(src,))
         vao = ctx.vertex_array(prog, [])
         vao.render(vertices=3)
         img = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(args.size, args.size, 4)

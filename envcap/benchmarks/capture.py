@@ -1,8 +1,7 @@
 """Probe capture throughput (probes/s at 6 x N^2): per-face chunk culling against drawing everything.
 
-The scene is the bundled ``canyon`` street when ``envcap.scene.load_scene`` exists, else a
-synthetic street of ~50k triangles (``envcap.scene.synthetic.street_canyon``).  Measured in
-the same run, interleaved probe by probe so that load from other processes hits both alike:
+The scene is the bundled ``canyon`` street (48,942 triangles) with its sky.  Measured in the
+same run, interleaved probe by probe so that load from other processes hits both alike:
 
 * ``culled``: :class:`~envcap.capture.renderer.CubeCapture` as shipped (chunks culled per face, near
   first), for every effect subset;
@@ -29,26 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
-from envcap.core.atomic import atomic_output_dir
-
-
-class _Sun:
-    def __init__(self) -> None:
-        d = np.array([0.35, 0.8, 0.25])
-        self.direction = d / np.linalg.norm(d)
-        self.illuminance = np.array([9e4, 8.5e4, 8e4])
-        self.angular_radius = 0.00465
-        self.radiance = self.illuminance / (np.pi * self.angular_radius ** 2)
-
-
-class _Sky:
-    """Uniform stand-in used only when envcap.sky.sky is missing."""
-
-    def __init__(self) -> None:
-        self.sun = _Sun()
-
-    def radiance(self, dirs: np.ndarray) -> np.ndarray:
-        return np.broadcast_to(np.array([4000.0, 5000.0, 7000.0]), np.shape(dirs)).copy()
+from envcap.capture.effects import BUILTIN_EFFECTS
+from envcap.capture.outputs import CaptureSet
+from envcap.capture.renderer import CubeCapture
+from envcap.gpu.context import create_context
+from envcap.outputs import atomic_output_dir
+from envcap.scene import load_scene
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,19 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--baseline-probes", type=int, default=3, help="probes for the naive baseline")
 
 
-def _scene():
-    try:
-        from envcap.scene import load_scene  # type: ignore[attr-defined]
-
-        sc = load_scene("canyon")
-        return sc.mesh, "canyon", sc
-    except Exception:
-        from envcap.scene.synthetic import street_canyon
-
-        return street_canyon(), "synthetic street_canyon", None
-
-
-def _timed(cap, pos: np.ndarray) -> tuple[float, dict[str, float], object]:
+def _timed(cap: CubeCapture, pos: np.ndarray) -> tuple[float, dict[str, float], CaptureSet]:
     """Wall seconds for ``capture_many(pos)``, per-probe pass means, and the set."""
     t0 = time.perf_counter()
     s = cap.capture_many(pos, progress=False)
@@ -81,27 +54,18 @@ def _timed(cap, pos: np.ndarray) -> tuple[float, dict[str, float], object]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from envcap.capture.renderer import CubeCapture
-    from envcap.gpu.gl import create_context
-
     if args.size < 1 or args.probes < 1 or args.baseline_probes < 1 or args.rounds < 1:
         raise ValueError("--size, --probes, --rounds and --baseline-probes must be >= 1")
     load_before = os.getloadavg()
-    mesh, name, sc = _scene()
-    sky = _Sky()
-    if sc is not None:
-        from envcap.sky.sky import sky_from_spec
-
-        sky = sky_from_spec(sc.sky, sc.base_dir)
+    name = "canyon"
+    sc = load_scene(name)
+    mesh, sky = sc.mesh, sc.sky.build()
     ctx = create_context()
-    lo, hi = mesh.positions.min(0), mesh.positions.max(0)
     rng = np.random.default_rng(0)
     x_lo, x_hi = -290.0, 290.0  # along the canyon street (x), inside its ends
-    if name != "canyon":
-        x_lo, x_hi = lo[0] + 0.3 * (hi[0] - lo[0]), lo[0] + 0.7 * (hi[0] - lo[0])
     pos = np.stack([rng.uniform(x_lo, x_hi, args.probes), np.full(args.probes, 1.7),
                     rng.uniform(-3.0, 3.0, args.probes)], axis=1)
-    all_eff = {"sun_light", "sun_shadows", "sky_light", "emissive_windows"}
+    all_eff = {e.name for e in BUILTIN_EFFECTS}
     subsets = {"geometry only": set(), "emissive_windows": {"emissive_windows"}, "sky_light": {"sky_light"},
                "sun_light": {"sun_light"}, "sun_light+sun_shadows": {"sun_light", "sun_shadows"}, "all": all_eff}
 
@@ -191,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _plot(path: Path, out: dict, tris: int, size: int) -> None:
-    import matplotlib
+    import matplotlib  # heavy, needed only for the figure
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -1,8 +1,10 @@
 """The ``envcap`` command line.  Subcommands live beside this file in :mod:`envcap.cli`, one module each
-(each has ``register(subparsers)``).
+(each has ``register(subparsers)``; a module without it is a helper, e.g. ``output_options``).
 
 Errors in the input (bad files, bad arguments) print one line ``envcap: error: ...`` and exit
-with status 2; nothing half-written is left behind (outputs are written atomically).
+with status 2; nothing half-written is left behind (outputs are written atomically, see
+:mod:`envcap.outputs`).  Ctrl-C exits with status 130 and SIGTERM with 143, after the same
+clean-up, with one line ``envcap: interrupted`` / ``envcap: terminated``.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import pkgutil
 import sys
 
 from envcap import __version__
+from envcap.cli.termination import EXIT_INTERRUPTED, EXIT_TERMINATED, Terminated, sigterm_raises
 
 USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, OSError, RuntimeError, KeyError)
 
@@ -25,8 +28,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"envcap {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for mod in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-        importlib.import_module(f"{__name__}.{mod.name}").register(sub)
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        mod = importlib.import_module(f"{__name__}.{info.name}")
+        if hasattr(mod, "register"):
+            mod.register(sub)
     return parser
 
 
@@ -38,10 +43,14 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        with sigterm_raises():
+            return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("envcap: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
+    except Terminated:
+        print("envcap: terminated", file=sys.stderr)
+        return EXIT_TERMINATED
     except USER_ERRORS as exc:
         msg = str(exc) if not isinstance(exc, KeyError) else f"missing key {exc}"
         print(f"envcap: error: {msg}", file=sys.stderr)

@@ -3,8 +3,15 @@
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
+
+from envcap.cli.output_options import add_force_argument, scene_input_files
+from envcap.outputs import claim_output_dir
+from envcap.probeset.bake import bake_probe_set
+from envcap.probeset.store import write_probe_set
+from envcap.scene import load_scene
 
 
 def add_bake_arguments(p: argparse.ArgumentParser, resolution: int) -> None:
@@ -17,6 +24,7 @@ def add_bake_arguments(p: argparse.ArgumentParser, resolution: int) -> None:
                    help="splat the sun into sky.ktx2 (float32) instead of keeping it only as an analytic light")
     p.add_argument("--no-exr", action="store_true", help="skip the per-probe OpenEXR files")
     p.add_argument("--no-previews", action="store_true", help="skip the PNG previews")
+    add_force_argument(p)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,18 +35,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def bake_to_dir(args: argparse.Namespace, scene_name: str, out: Path) -> Path:
-    from envcap.probeset.bake import bake_probe_set
-    from envcap.probeset.store import write_probe_set
-    from envcap.scene import load_scene
-
+def check_bake_arguments(args: argparse.Namespace) -> None:
+    """Refuse bad bake options before any output is claimed (``ValueError``)."""
     if args.resolution < 1:
         raise ValueError(f"--resolution must be a positive number of texels, got {args.resolution}")
+
+
+def bake_to_dir(args: argparse.Namespace, scene_name: str, out: str | os.PathLike[str]) -> Path:
+    """Bake ``scene_name`` with the options in ``args`` and write the probe set to ``out`` (a path,
+    or an output claimed with :func:`envcap.outputs.claim_output_dir`); return its path."""
+    check_bake_arguments(args)
     t0 = time.perf_counter()
     scene = load_scene(scene_name)
     ps = bake_probe_set(scene, resolution=args.resolution, spacing=args.spacing, height=args.height,
                         quality=args.quality, sun_in_sky=args.sun_in_sky, verbose=True)
-    ps.manifest["timings"]["total_s"] = round(time.perf_counter() - t0, 3)
+    ps.manifest = ps.manifest.with_timings(total_s=round(time.perf_counter() - t0, 3))
     path = write_probe_set(out, ps, exr=not args.no_exr, previews=not args.no_previews)
     n = ps.layer_count
     print(f"wrote {n} probes ({args.resolution}^2 x 6, {len(ps.levels)} levels) of '{scene.name}' to {path}"
@@ -47,5 +58,7 @@ def bake_to_dir(args: argparse.Namespace, scene_name: str, out: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    bake_to_dir(args, args.scene, args.out)
+    check_bake_arguments(args)
+    with claim_output_dir(args.out, kind="probe-set", inputs=scene_input_files(args.scene), force=args.force) as out:
+        bake_to_dir(args, args.scene, out)
     return 0

@@ -1,17 +1,23 @@
 """``envcap demo [--out DIR]``: the main job on a bundled scene, end to end, in about a minute.
 
 Bakes probes along the bundled ``canyon`` street (capture, plane fitting, cosine-lobe chains),
-writes the probe set with previews, then runs a short parallax-error evaluation against fresh
-captures and prints where the report and pictures are.
+writes the probe set with previews to ``DIR/probes``, then runs a short parallax-error
+evaluation against fresh captures into ``DIR/evaluation`` and prints where the report and
+pictures are.  Both outputs are claimed before any work (see :mod:`envcap.outputs`).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import time
 from pathlib import Path
 
-from envcap.cli.capture import add_bake_arguments, bake_to_dir
+from envcap.cli.capture import add_bake_arguments, bake_to_dir, check_bake_arguments
+from envcap.cli.output_options import scene_input_files
+from envcap.evaluate.run import quick_evaluation
+from envcap.outputs import claim_output_dir
+from envcap.scene import load_scene
 
 DEMO_SCENE = "canyon"
 
@@ -28,12 +34,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     out: Path = args.out
-    probes_dir = bake_to_dir(args, args.scene, out / "probes")
-    print(f"previews: {probes_dir / 'previews' / 'contact_sheet.png'}")
-    if not args.no_eval:
-        from envcap.evaluate.evaluation import quick_evaluation
-        from envcap.scene import load_scene
-
-        quick_evaluation(load_scene(args.scene), probes_dir, out / "evaluation")
+    check_bake_arguments(args)
+    inputs = scene_input_files(args.scene)
+    with contextlib.ExitStack() as claims:
+        probes = claims.enter_context(claim_output_dir(out / "probes", kind="probe-set", inputs=inputs, force=args.force))
+        evaluation = None if args.no_eval else claims.enter_context(
+            claim_output_dir(out / "evaluation", kind="evaluation-report", inputs=inputs, force=args.force))
+        probes_dir = bake_to_dir(args, args.scene, probes)
+        print(f"previews: {probes_dir / 'previews' / 'contact_sheet.png'}")
+        if evaluation is not None:
+            quick_evaluation(load_scene(args.scene), probes_dir, evaluation)
     print(f"demo finished in {time.perf_counter() - t0:.1f} s; outputs in {out.resolve()}")
     return 0

@@ -6,6 +6,18 @@ import argparse
 import math
 from pathlib import Path
 
+from envcap.cli.output_options import add_force_argument, scene_input_files
+from envcap.evaluate.report import write_report
+from envcap.evaluate.result import EvaluationResult
+from envcap.evaluate.run import DEFAULT_LOBE_POWERS, evaluate_scene
+from envcap.evaluate.sweep import DEFAULT_SWEEP, Sweep
+from envcap.outputs import claim_output_dir
+from envcap.probeset.bake import bake_probe_set
+from envcap.probeset.store import read_probe_set
+from envcap.runtime.methods import METHODS
+from envcap.scene import load_scene
+from envcap.scene.segment import street_segment
+
 
 def _powers(text: str) -> list[float]:
     out = []
@@ -29,8 +41,6 @@ def _powers(text: str) -> list[float]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from envcap.evaluate.evaluation import DEFAULT_SWEEP, METHODS
-
     p = sub.add_parser("evaluate", help="parallax error of a probe set against fresh captures (report + plots)")
     p.add_argument("scene", nargs="+", help="bundled scene name(s) or scene .toml path(s); one with --probes")
     src = p.add_mutually_exclusive_group(required=True)
@@ -51,43 +61,43 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lobes", type=_powers, default=None, metavar="W,...",
                    help="lobe powers, 'inf' = mirror (default inf,1024,256,64,16,4,1)")
     p.add_argument("--no-images", action="store_true", help="skip plots and image strips")
+    add_force_argument(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from envcap.evaluate.evaluation import DEFAULT_LOBE_POWERS, Sweep, evaluate_scene
-    from envcap.evaluate.report import write_report
-    from envcap.probeset.store import read_probe_set
-    from envcap.scene import load_scene
-
     if args.positions < 1:
         raise ValueError(f"--positions must be >= 1, got {args.positions}")
     if not (math.isfinite(args.margin) and args.margin >= 0):
         raise ValueError(f"--margin must be a finite number >= 0, got {args.margin}")
+    if args.probes is None and args.probe_resolution < 4:
+        raise ValueError(f"--probe-resolution must be >= 4, got {args.probe_resolution}")
     methods = [m.strip() for m in args.methods.split(",") if m.strip()]
     if args.probes is not None and len(args.scene) != 1:
         raise ValueError("--probes goes with exactly one scene (use --bake to evaluate several)")
     sweep = Sweep(per_street=args.positions, margin=args.margin, seed=args.seed)
-    results = []
-    for name in args.scene:
-        scene = load_scene(name)
-        if args.probes is not None:
-            ps = read_probe_set(args.probes)
-        else:
-            from envcap.probeset.bake import bake_probe_set
-            from envcap.evaluate.evaluation import street_segment
-
-            if args.probe_resolution < 4:
-                raise ValueError(f"--probe-resolution must be >= 4, got {args.probe_resolution}")
-            scene = street_segment(scene, args.bake)
-            ps = bake_probe_set(scene, resolution=args.probe_resolution, spacing=args.spacing)
-        res = evaluate_scene(scene, ps, sweep=sweep, methods=methods, lobe_powers=args.lobes or DEFAULT_LOBE_POWERS,
-                             resolution=args.resolution)
-        t = res.timings
-        print(f"evaluated {len(res.positions)} positions of '{scene.name}' in {t['total_s']:.1f} s "
-              f"(captures {t['captures_s']:.1f} s, filtering {t['filtering_s']:.1f} s, predictions {t['predictions_s']:.1f} s, "
-              f"shading {t['shading_s']:.1f} s)")
-        results.append(res)
-    out = write_report(results, args.out, images=not args.no_images)
-    print(f"report: {out / 'report.md'}")
+    inputs = [f for name in args.scene for f in scene_input_files(name)]
+    if args.probes is not None:
+        inputs.append(args.probes)
+    with claim_output_dir(args.out, kind="evaluation-report", inputs=inputs, force=args.force) as out:
+        results = [evaluate_one(name, args, sweep, methods) for name in args.scene]
+        write_report(results, out, images=not args.no_images)
+    print(f"report: {out.path / 'report.md'}")
     return 0
+
+
+def evaluate_one(name: str, args: argparse.Namespace, sweep: Sweep, methods: list[str]) -> EvaluationResult:
+    """Evaluate scene ``name`` against its probe set (``--probes``) or one baked in memory (``--bake``)."""
+    scene = load_scene(name)
+    if args.probes is not None:
+        ps = read_probe_set(args.probes)
+    else:
+        scene = street_segment(scene, args.bake)
+        ps = bake_probe_set(scene, resolution=args.probe_resolution, spacing=args.spacing)
+    res = evaluate_scene(scene, ps, sweep=sweep, methods=methods, lobe_powers=args.lobes or DEFAULT_LOBE_POWERS,
+                         resolution=args.resolution)
+    t = res.timings
+    print(f"evaluated {len(res.positions)} positions of '{scene.name}' in {t['total_s']:.1f} s "
+          f"(captures {t['captures_s']:.1f} s, filtering {t['filtering_s']:.1f} s, predictions {t['predictions_s']:.1f} s, "
+          f"shading {t['shading_s']:.1f} s)")
+    return res

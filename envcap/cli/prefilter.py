@@ -8,7 +8,10 @@ atomically (all or nothing):
 * ``level_KK.exr``: one OpenEXR cube env map per level, for inspection (half floats when every
   value fits, float32 otherwise);
 * ``chain.json``: the lobe ladder (``LobeLadder.to_manifest()``: sizes, powers, z(w) rule),
-  the input, the quality and the timings in seconds.
+  the input, the quality and the timings in seconds;
+* ``.envcap-output``: the marker of an envcap output (:mod:`envcap.outputs.marker`).
+
+``DIR`` is claimed before the input is read (:mod:`envcap.outputs.claim`): it may not hold ``IN``.
 """
 
 from __future__ import annotations
@@ -21,6 +24,14 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from envcap.cli.output_options import add_force_argument
+from envcap.core.latlong import latlong_to_cube, load_latlong
+from envcap.core.lobes import lobe_ladder
+from envcap.formats.exr_cube import ExrDataError, read_exr_cube, write_exr_cube
+from envcap.formats.ktx2 import write_ktx2
+from envcap.outputs import atomic_output_dir, claim_output_dir
+from envcap.prefilter import omega_box_pyramid, prefilter_chain
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("prefilter", help="filter an environment map (EXR cube or lat-long HDR/EXR) into a cosine-lobe mip chain")
@@ -30,6 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="face size of level 0 (default: the cube's own size; for lat-long, a power of two near width/4)")
     p.add_argument("--quality", default="default", choices=["fast", "default", "high"],
                    help="prefilter quality (see docs/prefilter.md); default: default")
+    add_force_argument(p)
     p.set_defaults(func=run)
 
 
@@ -37,24 +49,20 @@ def load_environment(path: str | Path, size: int | None) -> tuple[NDArray[np.flo
     """Read ``path`` as an RGBA cube ``(6, N, N, 4)`` float32 and say which kind it was.
 
     Raises ``FileNotFoundError`` for a missing file, ``ValueError`` for a file that is neither an
-    OpenEXR cube env map nor a 2:1 lat-long image (naming both reasons), for NaN/Inf texels and
-    for a bad ``size`` (< 1, or not ``N >> k`` of a cube input).
+    OpenEXR cube env map nor a 2:1 lat-long image (naming both reasons), for a truncated EXR, for
+    NaN/Inf or negative texels, and for a bad ``size`` (< 1, or not ``N >> k`` of a cube input).
     """
-    from envcap.formats.exr_cube import read_exr_cube
-    from envcap.core.latlong import latlong_to_cube, load_latlong
-    from envcap.prefilter.filters import omega_box_pyramid
-
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"input file not found: {path}")
     if size is not None and (isinstance(size, bool) or int(size) < 1):
         raise ValueError(f"--size must be a positive integer, got {size}")
     try:
-        rgba, _ = read_exr_cube(path)
+        rgba, _ = read_exr_cube(path, radiance=True)
         kind = "exr-cube"
+    except ExrDataError:  # truncated/corrupt, NaN/Inf or negative radiance: no other reader helps
+        raise
     except ValueError as cube_err:
-        if "NaN" in str(cube_err) or "Inf" in str(cube_err):
-            raise
         try:
             img = load_latlong(path)
         except ValueError as ll_err:
@@ -76,35 +84,30 @@ def load_environment(path: str | Path, size: int | None) -> tuple[NDArray[np.flo
 
 
 def run(args: argparse.Namespace) -> int:
-    from envcap.core.atomic import atomic_output_dir
-    from envcap.formats.exr_cube import write_exr_cube
-    from envcap.formats.ktx2 import write_ktx2
-    from envcap.core.lobes import lobe_ladder
-    from envcap.prefilter.filters import prefilter_chain
-
-    t0 = time.perf_counter()
-    cube, kind = load_environment(args.input, args.size)
-    t_read = time.perf_counter() - t0
-    ladder = lobe_ladder(cube.shape[1])
-    t0 = time.perf_counter()
-    chain = prefilter_chain(cube, ladder, quality=args.quality)
-    t_filter = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    with atomic_output_dir(args.out) as tmp:
-        write_ktx2(tmp / "chain.ktx2", [np.ascontiguousarray(c, np.float32) for c in chain], layered=False,
-                   fmt="rgba32f", kv={"envcap.lobes": json.dumps(ladder.to_manifest())})
-        for k, lv in enumerate(chain):
-            write_exr_cube(tmp / f"level_{k:02d}.exr", lv, half=None)
-        manifest = {
-            "input": str(args.input),
-            "input_kind": kind,
-            "quality": args.quality,
-            "lobes": ladder.to_manifest(),
-            "sizes": [int(s) for s in ladder.sizes],
-            "levels": [f"level_{k:02d}.exr" for k in range(ladder.levels)],
-            "ktx2": "chain.ktx2",
-            "timings_s": {"read": t_read, "prefilter": t_filter, "write": time.perf_counter() - t0},
-        }
-        (tmp / "chain.json").write_text(json.dumps(manifest, indent=2))
+    with claim_output_dir(args.out, kind="prefilter-chain", inputs=[args.input], force=args.force) as out:
+        t0 = time.perf_counter()
+        cube, kind = load_environment(args.input, args.size)
+        t_read = time.perf_counter() - t0
+        ladder = lobe_ladder(cube.shape[1])
+        t0 = time.perf_counter()
+        chain = prefilter_chain(cube, ladder, quality=args.quality)
+        t_filter = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        with atomic_output_dir(out) as tmp:
+            write_ktx2(tmp / "chain.ktx2", [np.ascontiguousarray(c, np.float32) for c in chain], layered=False,
+                       fmt="rgba32f", kv={"envcap.lobes": json.dumps(ladder.to_manifest())})
+            for k, lv in enumerate(chain):
+                write_exr_cube(tmp / f"level_{k:02d}.exr", lv, half=None)
+            manifest = {
+                "input": str(args.input),
+                "input_kind": kind,
+                "quality": args.quality,
+                "lobes": ladder.to_manifest(),
+                "sizes": [int(s) for s in ladder.sizes],
+                "levels": [f"level_{k:02d}.exr" for k in range(ladder.levels)],
+                "ktx2": "chain.ktx2",
+                "timings_s": {"read": t_read, "prefilter": t_filter, "write": time.perf_counter() - t0},
+            }
+            (tmp / "chain.json").write_text(json.dumps(manifest, indent=2))
     print(f"{args.out}: {ladder.levels} levels, {cube.shape[1]}^2 per face, prefilter {t_filter:.2f} s")
     return 0

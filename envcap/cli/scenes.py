@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from envcap.outputs.guard import check_writable, resolve_output
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("scenes", help="list the bundled city scenes (name, description)")
@@ -17,7 +19,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from envcap.scene.toml_scene import list_scenes, load_scene, scene_path
+    from envcap.scene import list_scenes, load_scene, scene_path
 
     if args.scene:
         names = [(s, "") for s in args.scene]
@@ -31,19 +33,20 @@ def run(args: argparse.Namespace) -> int:
         return 0
     ctx = None
     if args.preview:
-        from envcap.gpu.gl import create_context
+        check_writable(resolve_output(args.preview))  # before any scene is built
+        from envcap.gpu.context import create_context
 
         ctx = create_context()
     try:
         for name, _ in names:
             scene = load_scene(name)
             m = scene.mesh
-            lo, hi = (m.positions.min(0), m.positions.max(0)) if m.positions.size else ((0, 0, 0), (0, 0, 0))
+            lo, hi = m.world_bounds()
             print(f"{scene.name:<12} {scene.description}")
             print(f"    triangles {m.triangle_count}, buildings {scene.meta.get('buildings', 0)}, "
                   f"windows {scene.meta.get('windows', 0)} ({scene.meta.get('lit_windows', 0)} lit)")
             print(f"    bbox min ({lo[0]:.1f}, {lo[1]:.1f}, {lo[2]:.1f}) max ({hi[0]:.1f}, {hi[1]:.1f}, {hi[2]:.1f}) m")
-            print(f"    effects {', '.join(sorted(scene.effects))}; sky {scene.sky.get('type')}")
+            print(f"    effects {', '.join(sorted(scene.effects))}; sky {scene.sky.type}")
             for st in scene.streets:
                 print(f"    street {st.name}: along {st.axis} [{st.start:g}, {st.end:g}] m, facade planes "
                       f"{'z' if st.axis == 'x' else 'x'} = {st.facade_min:g} / {st.facade_max:g} m, probe line {st.center_line:g}")

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap import __version__
-from envcap.core.atomic import atomic_output_file
+from envcap.outputs import atomic_output_file
 
 IDENTIFIER = b"\xabKTX 20\xbb\r\n\x1a\n"
 """The 12-byte KTX 2.0 file identifier."""

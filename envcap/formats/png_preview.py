@@ -17,11 +17,9 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from envcap.core.atomic import atomic_output_file
+from envcap.outputs import atomic_output_file
+from envcap.core.color import luminance
 from envcap.core.cube import check_cube, horizontal_cross
-
-LUMA = np.array([0.2126, 0.7152, 0.0722])
-"""Rec.709 luminance weights."""
 
 MIDDLE_GRAY = 0.18
 
@@ -29,8 +27,7 @@ MIDDLE_GRAY = 0.18
 def auto_exposure(rgb: NDArray, percentile: float = 50.0) -> float:
     """Linear exposure multiplier mapping the ``percentile`` luminance of the finite, positive
     pixels of ``rgb`` (``(..., 3)``) to middle gray 0.18; 1.0 when there are none."""
-    a = np.asarray(rgb, dtype=np.float64)
-    y = a[..., :3] @ LUMA
+    y = luminance(rgb)
     y = y[np.isfinite(y) & (y > 0)]
     if y.size == 0:
         return 1.0

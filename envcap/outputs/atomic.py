@@ -1,16 +1,24 @@
-"""Write outputs so that a failed run leaves nothing half-written behind.
+"""Write outputs so that a failed or interrupted run leaves nothing half-written behind.
 
-Everything is written under a temporary sibling name and renamed into place at the end.
+An output directory is written under a temporary sibling name, marked as envcap's
+(:mod:`envcap.outputs.marker`) and put in place of the old one at the end
+(:mod:`envcap.outputs.swap`), under the output's lock (:mod:`envcap.outputs.claim`).  A single
+file is written under a temporary sibling name and renamed into place.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
-import shutil
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
+
+from envcap.outputs.claim import OutputClaim, claim_output_dir
+from envcap.outputs.deferred_signals import deferred_signals
+from envcap.outputs.guard import check_replaceable
+from envcap.outputs.marker import write_marker
+from envcap.outputs.swap import install, make_temp_dir, remove_path
 
 
 def _umask() -> int:
@@ -20,38 +28,46 @@ def _umask() -> int:
 
 
 def _publish_mode(path: Path, is_dir: bool) -> None:
-    """Give a temporary file or directory (created owner-only by tempfile) the usual mode."""
+    """Give a temporary file or directory (created owner-only) the usual mode."""
     os.chmod(path, (0o777 if is_dir else 0o666) & ~_umask())
 
 
 @contextlib.contextmanager
-def atomic_output_dir(path: str | os.PathLike[str], overwrite: bool = True) -> Iterator[Path]:
-    """Yield a temporary directory that becomes ``path`` when the block ends without error.
-
-    On error the temporary directory is removed and ``path`` is left as it was.  With
-    ``overwrite`` an existing ``path`` is replaced (only after the new content is complete);
-    without it an existing non-empty ``path`` is an error.
-    """
-    final = Path(path).resolve()
-    if final.exists() and not final.is_dir():
-        raise FileExistsError(f"output path {final} exists and is not a directory")
-    if final.exists() and any(final.iterdir()) and not overwrite:
-        raise FileExistsError(f"output directory {final} is not empty")
-    final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.tmp-", dir=final.parent))
+def _staged(claim: OutputClaim) -> Iterator[Path]:
+    if not claim.held:
+        raise RuntimeError(f"the claim on {claim.path} has been released; claim the output again")
+    tmp = make_temp_dir(claim.path)
     try:
         yield tmp
+        write_marker(tmp, claim.kind)
+        _publish_mode(tmp, True)
+        check_replaceable(claim.path, claim.force)  # nothing foreign appeared while we worked
+        install(tmp, claim.path)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        with deferred_signals():
+            remove_path(tmp)
         raise
-    _publish_mode(tmp, True)
-    old = None
-    if final.exists():
-        old = final.with_name(f".{final.name}.old-{os.getpid()}")
-        os.replace(final, old)
-    os.replace(tmp, final)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def atomic_output_dir(target: str | os.PathLike[str], *, kind: str = "output", force: bool = False) -> Iterator[Path]:
+    """Yield an empty temporary directory that becomes the output ``target`` when the block ends
+    without error.
+
+    ``target`` is an :class:`~envcap.outputs.claim.OutputClaim` (claimed before the work began;
+    its kind and force apply) or a path, which is claimed here (``kind``, ``force``: see
+    :func:`~envcap.outputs.claim.claim_output_dir`): refused when it is a file, the working
+    directory or a non-empty directory without envcap's marker (unless ``force``), or when
+    another process is writing it.  On error or interrupt the temporary directory is removed and
+    the output is left as it was; on success the output carries the marker, and the old output
+    is replaced only once the new one is complete.
+    """
+    if isinstance(target, OutputClaim):
+        with _staged(target) as tmp:
+            yield tmp
+        return
+    with claim_output_dir(target, kind=kind, force=force) as claim, _staged(claim) as tmp:
+        yield tmp
 
 
 @contextlib.contextmanager
@@ -65,7 +81,8 @@ def atomic_output_file(path: str | os.PathLike[str]) -> Iterator[Path]:
     try:
         yield tmp
     except BaseException:
-        tmp.unlink(missing_ok=True)
+        with deferred_signals():
+            tmp.unlink(missing_ok=True)
         raise
     _publish_mode(tmp, False)
     os.replace(tmp, final)

@@ -1,0 +1,81 @@
+"""Which paths envcap may write an output directory to: checked before any work is done.
+
+The rules (``OutputRefused`` says which one a path breaks):
+
+* the output is not a file, and the closest existing folder above it is a writable directory;
+* the output is never an input, an ancestor of an input, the working directory or an ancestor
+  of it, whatever ``force`` says;
+* an existing non-empty output directory is replaced only when envcap wrote it (it carries the
+  marker of :mod:`envcap.outputs.marker`), or with ``force``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from pathlib import Path
+
+from envcap.outputs.marker import MARKER_NAME, is_replaceable
+
+
+class OutputRefused(ValueError):
+    """envcap will not write an output there; the message says why and what to do instead."""
+
+
+def resolve_output(path: str | os.PathLike[str]) -> Path:
+    """The absolute path, symbolic links resolved, that an output named ``path`` will have."""
+    final = Path(os.path.abspath(os.fspath(path))).resolve()
+    if final.parent == final:
+        raise OutputRefused(f"output directory {final} is the file system root")
+    return final
+
+
+def _contains(outer: Path, inner: Path) -> bool:
+    return outer == inner or outer in inner.parents
+
+
+def check_not_inputs(final: Path, inputs: Iterable[str | os.PathLike[str]]) -> None:
+    """Refuse an output ``final`` that is one of ``inputs`` or contains one (``--force`` or not)."""
+    for item in inputs:
+        src = Path(os.path.abspath(os.fspath(item))).resolve()
+        if _contains(final, src):
+            what = "is the input" if final == src else "contains the input"
+            raise OutputRefused(f"output directory {final} {what} {src}; choose another output directory "
+                                f"(--force does not change this)")
+
+
+def check_output_target(final: Path, inputs: Iterable[str | os.PathLike[str]] = ()) -> None:
+    """Check, before any work, that the output directory ``final`` (from :func:`resolve_output`)
+    may be written: not a file, not an input or the working directory or above them, and the
+    closest existing folder above it a writable directory.  Raises :class:`OutputRefused`."""
+    cwd = Path.cwd().resolve()
+    if _contains(final, cwd):
+        what = "is" if final == cwd else "contains"
+        raise OutputRefused(f"output directory {final} {what} the working directory; choose another output "
+                            f"directory (--force does not change this)")
+    check_not_inputs(final, inputs)
+    check_writable(final)
+
+
+def check_writable(folder: Path) -> None:
+    """Refuse a ``folder`` that cannot be created or written: a file, or below a file or a
+    folder without write permission (on a read-only file system, too)."""
+    if folder.exists() and not folder.is_dir():
+        raise OutputRefused(f"output path {folder} exists and is not a directory")
+    above = folder.parent
+    while not above.exists():
+        above = above.parent
+    if not above.is_dir():
+        raise OutputRefused(f"cannot create output directory {folder}: {above} is not a directory")
+    if not os.access(above, os.W_OK | os.X_OK):
+        raise OutputRefused(f"cannot create output directory {folder}: {above} is not writable")
+    if folder.exists() and not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputRefused(f"cannot write output directory {folder}: it is not writable")
+
+
+def check_replaceable(final: Path, force: bool) -> None:
+    """Refuse to replace a non-empty directory that envcap did not write, unless ``force``."""
+    if not force and not is_replaceable(final):
+        raise OutputRefused(f"output directory {final} is not empty and was not written by envcap "
+                            f"(it has no {MARKER_NAME} file); choose another output directory, "
+                            f"or use --force to replace it")
