@@ -8,7 +8,8 @@ This is the main job of envcap (``envcap capture SCENE --out DIR``):
 1. the scene's sky (``scene.sky.build()``, see :class:`envcap.sky.SkySpec`) and its float32 cube;
 2. probes along each street's center line (:func:`envcap.probeset.placement.place_probes`);
 3. HDR cube captures of all probes (:class:`envcap.capture.renderer.CubeCapture`), running only the
-   passes the scene's effects call for;
+   passes the scene's effects call for, checked against the half-float range of ``probes.ktx2``
+   (:func:`envcap.probeset.half_range.check_half_range`: one line naming the probe and the cause);
 4. the three planes fitted per probe from its distance channel (:func:`envcap.probeset.planes.fit_planes`),
    recorded beside the nominal planes of the street description;
 5. cosine-lobe mip chains for the probes and the sky (:func:`envcap.prefilter.fast.prefilter_chain`);
@@ -32,6 +33,7 @@ from envcap.core.lobes import lobe_ladder
 from envcap.gpu.context import create_context
 from envcap.prefilter import prefilter_chain, prefilter_many
 from envcap.probeset.bake_bounds import check_bake_cost, check_geometry, check_gl_limits, estimate_bake
+from envcap.probeset.half_range import check_half_range
 from envcap.probeset.manifest import LobeTable, Manifest, Probe, SceneInfo, SkyInfo, Street, SunInfo, Timings, level_table
 from envcap.probeset.placement import MAX_PROBES, place_probes, probe_count
 from envcap.probeset.planes import Planes, fit_planes
@@ -114,6 +116,8 @@ def bake_probe_set(
             cap.release()
         timings["capture_s"] = time.perf_counter() - t0
         timings.update({f"pass_{k}_s": float(v) for k, v in captured.pass_times_s.items()})
+        check_half_range(captured.rgba, [(p.street, p.index) for street in placements for p in street], positions,
+                         scene, sky)
 
         t0 = time.perf_counter()
         if filter_levels:

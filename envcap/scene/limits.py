@@ -48,6 +48,13 @@ ANGLE_LIMIT_DEG = 360.0
 SEED_LIMIT = 2**64 - 1
 """Largest side ``seed`` (non-negative: numpy's seed sequences take no negative entries)."""
 
+EMISSION_LIMIT = 65504.0
+"""Largest window ``emission`` (radiance, each channel): the largest finite half float.  Probe
+radiance is stored as RGBA16F (``probes.ktx2``), so a brighter surface could never be stored and
+would fail only at write time, after the whole bake.  Light reflected on top of the emission (sun,
+sky) can still pass it; the bake checks the captured probes before filtering them
+(:mod:`envcap.probeset.half_range`)."""
+
 FIRST_FLOOR_LIMIT = 10_000
 """Largest ``windows.first_floor`` (a floor index)."""
 

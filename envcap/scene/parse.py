@@ -31,6 +31,7 @@ from envcap.scene.limits import (
     ANGLE_LIMIT_DEG,
     BUILDING_LIMIT,
     COORDINATE_LIMIT_M,
+    EMISSION_LIMIT,
     FIRST_FLOOR_LIMIT,
     GROUND_EXTENT_LIMIT_M,
     MESH_SCALE_RANGE,
@@ -40,7 +41,6 @@ from envcap.scene.limits import (
     SPAN_LIMIT_M,
 )
 from envcap.scene.table import Table
-from envcap.sky.checks import RGB_LIMIT
 from envcap.sky.registry import SkySpec, parse_sky_spec
 
 DEFAULT_GROUND_EXTENT = 1000.0
@@ -135,7 +135,7 @@ def _parse_windows(t: Table) -> WindowsSpec:
         frame_albedo=t.vector("frame_albedo", 3, (0.6, 0.6, 0.6), min=0.0, max=1.0, gray=True),
         offset=t.number("offset", 0.015, positive=True, max=0.5),
         emissive_fraction=t.number("emissive_fraction", 0.0, min=0.0, max=1.0),
-        emission=t.vector("emission", 3, (0.0, 0.0, 0.0), min=0.0, max=RGB_LIMIT),
+        emission=t.vector("emission", 3, (0.0, 0.0, 0.0), min=0.0, max=EMISSION_LIMIT),
     )
     t.close()
     if w.width + 2 * w.frame >= w.spacing:

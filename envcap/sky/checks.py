@@ -16,7 +16,8 @@ from envcap.core.checks import finite_float
 
 RGB_LIMIT = 1.0e12
 """Largest radiance (cd/m^2-scaled) or illuminance (lux) a scene key may give: ``[sky] radiance``,
-``sun.illuminance``, window ``emission``.  500 times the sun's disk radiance (~2e9 cd/m^2),
+``sun.illuminance`` (window ``emission`` has its own, smaller limit,
+:data:`envcap.scene.limits.EMISSION_LIMIT`).  500 times the sun's disk radiance (~2e9 cd/m^2),
 10^7 times its illuminance: larger is a unit mistake, and every value derived from it (texel
 averages, the splatted sun, prefiltered sums) stays far inside float32 range."""
 

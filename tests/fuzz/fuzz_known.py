@@ -84,13 +84,6 @@ _ALL = [
           "envcap/formats/exr_cube.py: read_exr_cube (wrap the binding's UnicodeDecodeError with the path)",
           ("read.exr",),
           lambda case, res: _message_only(res, "codec can't decode")),
-    Known("probe-half-overflow", "probe radiance past the half-float range (a lit window of 202159, allowed by "
-          "the scene's ranges): the whole bake runs, then writing probes.ktx2 fails with \"use fmt='rgba32f' or "
-          "clamp=True\" (Python advice), naming neither the scene key nor the file",
-          "envcap/probeset/bake.py (check the probe chain against RGBA16F before writing, naming the cause) "
-          "or envcap/scene/limits.py (emission range)",
-          ("scene.capture", "cli.capture"),
-          lambda case, res: _message_only(res, "half-float maximum")),
     Known("runtime-nan-texture", "the numpy twin's lookup turns NaN / Inf texels into NaN radiance silently "
           "(design question: the twin mirrors GLSL, which cannot raise)",
           "envcap/runtime/chains.py: ProbeChains (check levels) and envcap/runtime/sampling.py: sample_street "

@@ -167,14 +167,14 @@ def test_pinned_a_mesh_scale_past_float32_is_named(fuzz_base, latlong_exr, scale
     check_scene_capture(fuzz_base, latlong_exr, "imported", _edit("imported", edit), ["mesh.scale"], tolerate=False)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 9: probe-half-overflow")
 @PINNED
 @example(emission=202159.0)
 @given(emission=st.sampled_from([7.0e4, 1.0e6]))
 def test_pinned_probe_radiance_past_half_float_is_named_before_the_bake(fuzz_base, latlong_exr, emission):
-    """A lit window of radiance 202159 (within the scene's range): the whole bake runs, then writing
-    probes.ktx2 (RGBA16F) fails with "level 0: 2 value(s) exceed the half-float maximum 65504 ...;
-    use fmt='rgba32f' or clamp=True" -- Python advice to a CLI user, naming neither the key nor the file."""
+    """A lit window of radiance 202159 (old: within the scene's range; the whole bake ran, then writing
+    probes.ktx2 (RGBA16F) failed with "level 0: 2 value(s) exceed the half-float maximum 65504 ...;
+    use fmt='rgba32f' or clamp=True" -- Python advice to a CLI user, naming neither the key nor the file).
+    New: the emission's range ends at 65504, so the scene is refused at load naming the key."""
     def edit(tree):
         tree["streets"][0]["facade"]["windows"]["emission"] = [emission, 95.0, 60.0]
     check_scene_capture(fuzz_base, latlong_exr, "canyon", _edit("canyon", edit), ["streets.0.facade.windows.emission"],
