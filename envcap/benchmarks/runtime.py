@@ -22,6 +22,14 @@ import time
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
+
+from envcap.core.resources import expand_includes, shader_source
+from envcap.gpu.context import create_context
+from envcap.gpu.cube_array import CubeArrayTexture, cube_texture
+from envcap.gpu.uniforms import set_uniforms
+from envcap.outputs import atomic_output_dir
+from envcap.runtime import synthetic_street as ss
 
 VERT = """#version 430
 out vec2 uv;
@@ -38,8 +46,8 @@ in vec2 uv;
 out vec4 color;
 layout(binding = 3) uniform samplerCubeArray probes;
 layout(binding = 4) uniform samplerCube sky;
-#include "envcap_runtime.glsl"
-#include "envcap_street_uniforms.glsl"
+#include "runtime/envcap_runtime.glsl"
+#include "runtime/envcap_street_uniforms.glsl"
 uniform float w;
 void main() {
     // a shading point on a grid along the street and a direction over the whole sphere
@@ -47,11 +55,11 @@ void main() {
     float th = uv.y * 3.14159265, ph = uv.x * 6.2831853 * 3.0;
     vec3 d = vec3(sin(th) * cos(ph), cos(th), sin(th) * sin(ph));
 #if MODE == 0
-    color = textureLod(probes, vec4(d, 0.0), envcap_z_of_w(w, xk, nlevels));
+    color = textureLod(probes, vec4(d, 0.0), envcap_z_of_w(w, envcap_street.xk, envcap_street.nlevels));
 #elif MODE == 1
-    color = vec4(envcap_sample_nearest(probes, sky, x, d, w, along_s, pos, planes, count, along, xk, nlevels), 1.0);
+    color = vec4(envcap_sample_nearest(probes, sky, x, d, w, envcap_street), 1.0);
 #else
-    color = vec4(envcap_sample_blended(probes, sky, x, d, w, along_s, pos, planes, count, along, xk, nlevels), 1.0);
+    color = vec4(envcap_sample_blended(probes, sky, x, d, w, envcap_street), 1.0);
 #endif
 }
 """
@@ -61,9 +69,7 @@ MODES = {"plain": 0, "full": 1, "blended": 2}
 
 def fetches_per_lobe() -> dict[str, int]:
     """``textureLod`` calls on each path, counted in the runtime GLSL source."""
-    from envcap.core.resources import shader_source
-
-    src = shader_source("envcap_runtime.glsl")
+    src = shader_source("runtime/envcap_runtime.glsl")
 
     def body(name: str) -> str:
         m = re.search(r"\b" + name + r"\s*\([^{]*\{", src)
@@ -94,13 +100,6 @@ def run(args: argparse.Namespace) -> int:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from tqdm import tqdm
-
-    from envcap.runtime import synthetic_street as ss
-    from envcap.core.atomic import atomic_output_dir
-    from envcap.gpu.gl import CubeArrayTexture, create_context, cube_texture
-    from envcap.gpu.glsl_harness import set_uniforms
-    from envcap.core.resources import expand_includes
 
     probes, sky, street, powers = ss.synthetic_probe_set(args.face, count=3, start=0.0, end=20.0)
 
@@ -112,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
     for name, mode in MODES.items():
         frag = expand_includes(FRAG.replace("{mode}", str(mode)))
         prog = ctx.program(vertex_shader=VERT, fragment_shader=frag)
-        set_uniforms(prog, {**street.uniforms(powers), "w": float(args.w)})
+        set_uniforms(prog, {**street.uniforms(powers).values(), "w": float(args.w)}, sources=(frag,))
         progs[name] = (prog, ctx.vertex_array(prog, []))
     fbo.use()
     pt.use(3)

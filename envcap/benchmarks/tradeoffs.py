@@ -7,11 +7,11 @@ in one run, every knob is varied with the others at a fixed reference setting:
   bake time per 100 m of street;
 * ``resolution`` (16, 32, 64, 128; spacing 5 m): error vs capture (+ prefilter) time per probe;
 * ``quality`` (fast, default, high; 64^2, spacing 5 m): error vs prefilter time per probe;
-* ``method`` (every :data:`envcap.evaluate.evaluation.METHODS`; 32^2, spacing 5 m): error vs cost per lookup
+* ``method`` (every :data:`envcap.runtime.methods.METHODS`; 32^2, spacing 5 m): error vs cost per lookup
   as a ratio to a plain lookup (``textureLod`` twin: one cube-array fetch at ``d``, level
   ``z(w)``), timed on the numpy twin in the same run (GLSL ratios: ``envcap bench runtime``).
 
-Error: :func:`envcap.evaluate.evaluation.evaluate_scene` (fresh captures, 32^2 truth, ``--positions``
+Error: :func:`envcap.evaluate.run.evaluate_scene` (fresh captures, 32^2 truth, ``--positions``
 positions, fixed seed), mean over positions and lobe powers (mirror, 256, 64, 16) of the
 solid-angle weighted relative RMSE of luminance, sun taken out of the sky (an analytic sun light;
 docs/evaluation.md explains why), method ``planes_mip`` unless the knob is the method.  Writes
@@ -28,6 +28,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from envcap.core import cube, cube_sampling
+from envcap.evaluate.predict import Predictor
+from envcap.evaluate.result import EvaluationResult, lobe_power_label
+from envcap.evaluate.run import evaluate_scene
+from envcap.evaluate.sweep import Sweep
+from envcap.gpu.context import create_context
+from envcap.outputs import atomic_output_dir
+from envcap.probeset.bake import bake_probe_set
+from envcap.runtime.methods import METHODS
+from envcap.scene import load_scene
+from envcap.scene.segment import street_segment
 
 LOBES = (math.inf, 256.0, 64.0, 16.0)
 
@@ -61,24 +73,19 @@ def _probe_bytes(ps: Any) -> int:
     return n
 
 
-def _error(res: Any, method: str) -> dict[str, float]:
-    per = {("mirror" if lp is None else f"w={lp:g}"): res.error(method, lp, sun=False) for lp in res.meta["lobe_powers"]}
+def _error(res: EvaluationResult, method: str) -> dict[str, float]:
+    per = {lobe_power_label(lp): res.error(method, lp, sun=False) for lp in res.meta["lobe_powers"]}
     return {"error": float(np.mean(list(per.values()))), **{f"error_{k}": v for k, v in per.items()}}
 
 
 def _lookup_costs(ps: Any, scene_street: str, repeats: int) -> dict[str, float]:
     """Seconds per lookup of each method on the numpy twin, and of a plain cube-array fetch."""
-    from envcap.core import cube, cube_sampling
-    from envcap.runtime import parallax as px
-    from envcap.evaluate.evaluation import METHODS, Predictor
-
     pr = Predictor(ps)
     d = cube.texel_directions(32).reshape(-1, 3)
     rng = np.random.default_rng(0)
     w = np.exp(rng.uniform(0, 8, d.shape[0]))
-    x = np.array(ps.manifest["streets"][0]["probes"][0]["position"], float) + np.array([1.3, -0.7, 0.0])
-    st = pr.streets[scene_street]
-    x[2 - st["along"]] += 2.0
+    x = np.array(ps.manifest.streets[0].probes[0].position, float) + np.array([1.3, -0.7, 0.0])
+    x[2 - pr.streets[scene_street].along] += 2.0
     layer = np.zeros(d.shape[0])
     out: dict[str, float] = {}
 
@@ -90,7 +97,7 @@ def _lookup_costs(ps: Any, scene_street: str, repeats: int) -> dict[str, float]:
             ts.append(time.perf_counter() - t0)
         return float(np.median(ts)) / d.shape[0]
 
-    out["plain"] = timed(lambda: cube_sampling.sample_cube_array(pr.levels, d, layer, px.clamp_level(px.z_of_w(w, pr.xk), len(pr.powers))))
+    out["plain"] = timed(lambda: cube_sampling.sample_cube_array(pr.chains.levels, d, layer, pr.chains.level(w)))
     for m in METHODS:
         out[m] = timed(lambda m=m: pr.predict(m, scene_street, x, d, w))
     return out
@@ -105,12 +112,6 @@ def _pareto(points: list[tuple[float, float]]) -> list[bool]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from envcap.core.atomic import atomic_output_dir
-    from envcap.probeset.bake import bake_probe_set
-    from envcap.evaluate.evaluation import METHODS, Sweep, evaluate_scene, street_segment
-    from envcap.gpu.gl import create_context
-    from envcap.scene import load_scene
-
     spacings = _floats(args.spacings, "--spacings")
     resolutions = [int(v) for v in _floats(args.resolutions, "--resolutions")]
     if args.positions < 1:
@@ -145,17 +146,17 @@ def run(args: argparse.Namespace) -> int:
             for r in resolutions:
                 ps, tb = bake(r, 5.0)
                 res = evaluate_scene(scene, ps, methods=("planes_mip",), **eval_kw)
-                t = ps.manifest["timings"]
+                t = ps.manifest.timings
                 rows.append({"scene": name, "knob": "resolution", "value": r, "method": "planes_mip", "probes": ps.layer_count,
-                             "capture_s_per_probe": t["capture_s"] / ps.layer_count,
-                             "prefilter_s_per_probe": t["prefilter_s"] / ps.layer_count,
+                             "capture_s_per_probe": t.capture_s / ps.layer_count,
+                             "prefilter_s_per_probe": t.prefilter_s / ps.layer_count,
                              "bake_s_per_probe": tb / ps.layer_count,
                              "memory_mb_per_100m": _probe_bytes(ps) / 1e6 * 100.0 / street_len, **_error(res, "planes_mip")})
             for q in ("fast", "default", "high"):
                 ps, tb = bake(64, 5.0, q)
                 res = evaluate_scene(scene, ps, methods=("planes_mip",), **eval_kw)
                 rows.append({"scene": name, "knob": "quality", "value": q, "method": "planes_mip", "probes": ps.layer_count,
-                             "prefilter_s_per_probe": ps.manifest["timings"]["prefilter_s"] / ps.layer_count,
+                             "prefilter_s_per_probe": ps.manifest.timings.prefilter_s / ps.layer_count,
                              **_error(res, "planes_mip")})
             ps, _ = bake(32, 5.0)
             res = evaluate_scene(scene, ps, methods=METHODS, **eval_kw)
@@ -170,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
     doc = {"benchmark": "tradeoffs", "scenes": names, "street_length_m": args.length, "positions_per_street": n_pos,
            "lobe_powers": ["mirror" if math.isinf(w) else w for w in LOBES], "truth_resolution": 32,
            "error": "mean rel. RMSE of luminance over positions and lobe powers, sun out of the sky",
-           "lookup_timing": "numpy twin (envcap.evaluate.evaluation.Predictor), 6144 directions, median of repeats; "
+           "lookup_timing": "numpy twin (envcap.runtime.methods via envcap.evaluate.predict.Predictor), 6144 directions, median of repeats; "
                             "plain = one cube-array fetch at d, z(w)",
            "rows": rows, "total_s": total}
     with atomic_output_dir(args.out) as tmp:

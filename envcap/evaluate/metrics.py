@@ -1,4 +1,4 @@
-"""Error metrics on cube maps, weighted by exact texel solid angles.
+"""Error metrics on cube maps, weighted by exact texel solid angles, and the plane misfit of a position.
 
 All metrics compare luminance ``Y = 0.2126 R + 0.7152 G + 0.0722 B`` (Rec.709, linear) of cubes
 ``(..., 6, N, N, 3+)`` and weight every texel by its solid angle, so that the result is an
@@ -8,20 +8,12 @@ integral over the sphere and does not depend on how the cube parameterizes it.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from envcap.core import cube
-
-REC709_LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
-"""Luminance weights of linear Rec.709 RGB."""
-
-
-def luminance(rgb: NDArray[np.floating]) -> NDArray[np.float64]:
-    """Luminance of linear Rec.709 colors ``(..., 3+)`` (extra channels ignored), float64."""
-    a = np.asarray(rgb, dtype=np.float64)
-    if a.shape[-1] < 3:
-        raise ValueError(f"need at least 3 color channels, got shape {a.shape}")
-    return a[..., :3] @ REC709_LUMINANCE
+from envcap.core.color import luminance
+from envcap.runtime.parallax import clamp_to_street, exit_distance
+from envcap.runtime.street import RuntimeStreet
 
 
 def relative_rmse(pred: NDArray[np.floating], truth: NDArray[np.floating]) -> float:
@@ -60,3 +52,28 @@ def relative_error_map(pred: NDArray[np.floating], truth: NDArray[np.floating], 
         w = cube.texel_solid_angles(yt.shape[-1])
         floor = max(0.01 * float(np.sum(w * yt) / (4 * np.pi)), 1e-12)
     return np.abs(yp - yt) / np.maximum(yt, floor)
+
+
+def plane_misfit(x: ArrayLike, distance: NDArray, alpha: NDArray, street: RuntimeStreet, rel: float = 0.2,
+                 abs_m: float = 0.25) -> float:
+    """Share of the sphere (solid-angle weighted, 0..1) seen from ``x`` where the three nominal
+    planes of the nearest probe are the wrong model: the true hit distance (``distance``
+    ``(6, N, N)`` m from ``x``, geometry where ``alpha > 0.5``) and the planes' exit distance
+    differ by more than ``rel`` (relative) + ``abs_m`` (m), or one of them sees the sky (no
+    hit within 1 km) and the other does not.  Gaps, crossings, setbacks and open squares raise it.
+    """
+    x = np.asarray(x, np.float64)
+    n = distance.shape[1]
+    d = cube.texel_directions(n)
+    planes = street.planes[int(street.nearest(x))]
+    xc = clamp_to_street(x, planes, street.along)
+    t_model = exit_distance(xc, d, planes, street.along)
+    geo = (np.asarray(alpha) > 0.5) & (np.asarray(distance) > 0)
+    t_true = np.where(geo, np.asarray(distance, np.float64), np.inf)
+    far = 1000.0
+    sky_true, sky_model = ~(t_true < far), ~(t_model < far)
+    with np.errstate(invalid="ignore"):
+        close = np.abs(t_true - t_model) <= rel * np.minimum(t_true, t_model) + abs_m
+    ok = (sky_true & sky_model) | (~sky_true & ~sky_model & close)
+    om = cube.texel_solid_angles(n)
+    return float(np.sum(om[~ok]) / (4.0 * np.pi))

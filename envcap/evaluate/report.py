@@ -1,4 +1,4 @@
-"""Reports of :func:`envcap.evaluate.evaluation.evaluate_scene`: ``report.json``, ``report.md``, plots and
+"""Reports of :func:`envcap.evaluate.run.evaluate_scene`: ``report.json``, ``report.md``, plots and
 image strips of the worst positions, written atomically into one directory.
 
 ``report.json``: ``results`` (rows ``{scene, method, lobe_power, rel_rmse, median, p90, max,
@@ -18,10 +18,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from envcap.core.atomic import atomic_output_dir
-from envcap.evaluate.evaluation import EvaluationResult, _lp_label, summarize
-
-SHOWN = ("nearest", "planes_mip")
+from envcap.core.cube import horizontal_cross
+from envcap.evaluate.result import EvaluationResult, lobe_power_label, summarize
+from envcap.formats.png_preview import contact_sheet_png, heatmap_png
+from envcap.outputs import atomic_output_dir
 
 
 def best_method(res: EvaluationResult, candidates: Sequence[str] | None = None) -> str:
@@ -100,7 +100,7 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
             label = "sun splatted into the sky map" if sun else "sun taken out of the sky (analytic sun light; primary)"
             rows = [[m] + [_fmt(res.error(m, lp, sun=sun)) for lp in lps] for m in res.meta["methods"]]
             parts += [f"### Mean relative RMSE by method and lobe power: {label}", "",
-                      _md_table(["method"] + [_lp_label(lp) for lp in lps], rows), ""]
+                      _md_table(["method"] + [lobe_power_label(lp) for lp in lps], rows), ""]
             rrows = []
             for m in res.meta["methods"]:
                 if m == "nearest":
@@ -108,7 +108,7 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
                 rrows.append([m] + [_fmt(next((r["ratio"] for r in rat if r["method"] == m and r["lobe_power"] == lp
                                                and r["sun"] == sun), math.nan)) for lp in lps])
             parts += [f"Error of `nearest` / error of method (higher is better), {label}:", "",
-                      _md_table(["method"] + [_lp_label(lp) for lp in lps], rrows), ""]
+                      _md_table(["method"] + [lobe_power_label(lp) for lp in lps], rrows), ""]
         bo = by_offset(res)
         sun_b = False if False in res.meta.get("sun_variants", [True]) else True
         lp_b = 64.0 if 64.0 in lps else lps[0]
@@ -126,13 +126,13 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
                          "plane_misfit": "plane misfit"}[key]
                 brows.append([label, b, str(vals[0]["n"])]
                              + [_fmt(v["rel_rmse"]) if v else "–" for v in vals])
-        parts += [f"### By offset ({_lp_label(lp_b)}, {'sun out of the sky' if not sun_b else 'sun in the sky'}); "
+        parts += [f"### By offset ({lobe_power_label(lp_b)}, {'sun out of the sky' if not sun_b else 'sun in the sky'}); "
                   "plane_misfit = share of the sphere where the three planes are the wrong model", "",
                   _md_table(["offset", "bin", "positions"] + meths, brows), ""]
         cr = [r for r in res.rows if r["near_crossing"]]
         if cr:
             nc = summarize(res.scene, cr)
-            crows = [[r["method"], _lp_label(r["lobe_power"]), "yes" if r["sun"] else "no", _fmt(r["rel_rmse"]),
+            crows = [[r["method"], lobe_power_label(r["lobe_power"]), "yes" if r["sun"] else "no", _fmt(r["rel_rmse"]),
                       str(r["n_positions"])] for r in nc if r["lobe_power"] in (None, 64.0)]
             parts += ["### Positions inside the other street's roadway (three planes are wrong there)", "",
                       _md_table(["method", "lobe", "sun", "mean rel. RMSE", "positions"], crows), ""]
@@ -148,7 +148,7 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
             frows.append(["sky composited after filtering vs filtered composite"] +
                          [_fmt(next((r["rel_rmse"] for r in ce if r["lobe_power"] == lp), math.nan)) for lp in lps_f])
             parts += ["### Floor: evaluated at probe positions (chain interpolation and filtering only)", "",
-                      _md_table(["method"] + [_lp_label(lp) for lp in lps_f], frows), ""]
+                      _md_table(["method"] + [lobe_power_label(lp) for lp in lps_f], frows), ""]
         if res.shading:
             mats = sorted({r["material"] for r in res.shading})
             srows = []
@@ -200,7 +200,7 @@ def _plots(results: Sequence[EvaluationResult], out: Path) -> list[str]:
         ax.set_xlabel("|lateral offset| from the probe line (m)")
         ax.set_ylabel("relative RMSE of luminance")
         ax.set_yscale("log")
-        ax.set_title(f"{_lp_label(lp)}, all scenes")
+        ax.set_title(f"{lobe_power_label(lp)}, all scenes")
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].legend(fontsize=7)
     fig.tight_layout()
@@ -253,9 +253,6 @@ def _plots(results: Sequence[EvaluationResult], out: Path) -> list[str]:
 
 
 def _strips(res: EvaluationResult, out: Path) -> list[str]:
-    from envcap.core.cube import horizontal_cross
-    from envcap.formats.png_preview import contact_sheet_png, heatmap_png
-
     files = []
     kept = res.strips.get("positions") or {}
     best = best_method(res, [m for m in res.meta["methods"] if m not in ("nearest", "planes_mip")] or None)
@@ -270,7 +267,7 @@ def _strips(res: EvaluationResult, out: Path) -> list[str]:
             sun0 = res.meta.get("primary_sun", True)
             errs = {m: next(r["rel_rmse"] for r in res.rows if r["position_index"] == idx and r["method"] == m
                             and r["lobe_power"] == (None if math.isinf(w) else w) and r.get("sun", True) == sun0) for m in show}
-            labels = [f"truth {_lp_label(w)}"] + [f"{m}: {errs[m]:.3f}" for m in show]
+            labels = [f"truth {lobe_power_label(w)}"] + [f"{m}: {errs[m]:.3f}" for m in show]
             tag = "mirror" if math.isinf(w) else f"w{w:g}"
             name = f"worst_{res.scene}_{rank}_{tag}.png"
             contact_sheet_png(out / name, cubes, labels, cols=len(cubes))
@@ -282,7 +279,7 @@ def _strips(res: EvaluationResult, out: Path) -> list[str]:
             name = f"worst_{res.scene}_{rank}_{tag}_error.png"
             heatmap_png(out / name, np.minimum(row, 1.0), 0.0, 1.0, "relative luminance error (clipped at 1)",
                         title=f"{res.scene} pos {idx} {ep.street} lat {ep.lateral:+.1f} m h {ep.height:.1f} m, "
-                              f"{_lp_label(w)}: " + " | ".join(show))
+                              f"{lobe_power_label(w)}: " + " | ".join(show))
             files.append(name)
     return files
 

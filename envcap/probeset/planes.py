@@ -78,14 +78,16 @@ class FittedPlanes:
 
 def _robust_mode(
     values: NDArray[np.float64], weights: NDArray[np.float64], bin_m: float, near: float, min_weight: float
-) -> tuple[float, float]:
+) -> tuple[float | None, float]:
     """The plane among ``values`` (hit coordinates, with solid-angle ``weights``).
 
     Histogram with ``bin_m`` bins, smoothed over 3 bins; every local maximum that holds at least
     ``min_weight`` and a quarter of the highest peak is a candidate plane, and the candidate
     closest to ``near`` (the probe) wins: the street front, not a wall seen through a gap.  The
     estimate is refined by the weighted median of the values within 2 bins of the peak.
-    Returns (estimate, median absolute deviation).
+    Returns (estimate, median absolute deviation), or ``(None, nan)`` when no bin holds
+    ``min_weight`` (votes spread thin over many distances: a sparse mesh, or a street placed
+    away from its buildings).
     """
     lo, hi = float(values.min()), float(values.max())
     nb = max(1, int(math.ceil((hi - lo) / bin_m)) + 1)
@@ -98,6 +100,8 @@ def _robust_mode(
     is_max = (smooth >= padded[:-2]) & (smooth >= padded[2:])
     good = is_max & (smooth >= max(min_weight, 0.25 * smooth.max()))
     cand = np.flatnonzero(good)
+    if cand.size == 0:
+        return None, float("nan")
     centers = lo + (cand + 0.5) * bin_m
     peak = float(centers[np.argmin(np.abs(centers - near))])
     sel = np.abs(values - peak) <= 2 * bin_m
@@ -134,6 +138,8 @@ def fit_planes(
     (the street front rather than a wall seen through a gap), refined by the weighted median
     near it.  Peaks, not means, are what make it robust: rays through a gap, onto a set-back
     building or onto windows only add votes elsewhere.  A facade must lie on its own side of the probe.
+    A plane whose votes cover ``min_coverage_sr`` but form no peak of a quarter of that is not
+    fitted (``None``, its coverage recorded): :func:`unfitted_but_seen` names it.
     """
     if axis not in ("x", "z"):
         raise ValueError(f"street axis must be 'x' or 'z', got {axis!r}")
@@ -178,3 +184,17 @@ def fit_planes(
     coverage = PerPlane(round(cmin, 6), round(cmax, 6), round(cg, 6))
     spread = PerPlane(*(round(v if math.isfinite(v) else 0.0, 6) for v in (smin, smax, sg)))
     return FittedPlanes(fmin, fmax, ground, coverage, spread)
+
+
+PLANE_NAMES = ("facade_min", "facade_max", "ground")
+"""The three planes, in :class:`Planes` field order."""
+
+
+def unfitted_but_seen(fitted: FittedPlanes, min_coverage_sr: float = 0.05) -> tuple[str, ...]:
+    """The planes (names of :data:`PLANE_NAMES`) that ``fitted`` leaves to the nominal ones although
+    their side was covered (at least ``min_coverage_sr`` sr of votes, the default of
+    :func:`fit_planes`): geometry was seen there but no plane stood out (sparse or misplaced
+    geometry), as opposed to open sky or an empty side."""
+    cov = fitted.coverage_sr
+    return tuple(name for name in PLANE_NAMES
+                 if getattr(fitted, name) is None and getattr(cov, name) >= min_coverage_sr)

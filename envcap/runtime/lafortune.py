@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from envcap.core import cube
-from envcap.runtime.parallax import shade_lafortune
+from envcap.runtime.shading import shade_lafortune
 
 RadianceFn = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 """Radiance of the environment for unit directions ``(..., 3)`` -> ``(..., 3)`` (world frame)."""

@@ -21,7 +21,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.core import cube
 from envcap.core.lobes import lobe_ladder
-from envcap.runtime.parallax import FAR, RuntimeStreet, exit_distance
+from envcap.runtime.limits import FAR
+from envcap.runtime.parallax import exit_distance
+from envcap.runtime.street import RuntimeStreet
 
 SUN_DIR = np.array([0.3, 0.8, 0.52]) / np.linalg.norm([0.3, 0.8, 0.52])
 
@@ -150,7 +152,7 @@ def synthetic_probe_set(n: int = 32, count: int = 3, along: int = 0, planes: Seq
     GLSL-vs-twin tests, not for accuracy claims).
 
     Returns ``(probe_levels, sky_levels, street, powers)``: probe level k ``(count, 6, N_k, N_k, 4)``,
-    sky level k ``(6, N_k, N_k, 4)``, the :class:`envcap.runtime.parallax.RuntimeStreet` and the powers.
+    sky level k ``(6, N_k, N_k, 4)``, the :class:`envcap.runtime.street.RuntimeStreet` and the powers.
     """
     pos = probe_positions(start, end, count, planes, along)
     pl = np.tile(np.asarray(planes, float), (count, 1))

@@ -6,7 +6,8 @@
 * the ``planes`` scene (every visible point on one of the three planes): the three-plane
   prediction converges to the truth as the probe resolution grows, nearest does not;
 * depth reprojection against a hand-derived single-plane case;
-* the Predictor's blend / planes_mip against the runtime twin ``envcap.runtime.parallax.sample_street``;
+* the Predictor's blend / planes_mip (local probes) against the runtime twin
+  ``envcap.runtime.sampling.sample_street`` (whole street);
 * positions, bad inputs, CLI errors, atomic reports.
 """
 
@@ -18,23 +19,33 @@ import math
 import numpy as np
 import pytest
 
+from envcap.cli import main
 from envcap.core import cube
-from envcap.runtime import parallax as px
-from envcap.evaluate.evaluation import (METHODS, Predictor, Sweep, depth_reproject, evaluate_scene, filter_truth,
-                             sample_positions, street_segment, truth_grid_size)
+from envcap.evaluate.predict import Predictor
+from envcap.evaluate.report import write_report
+from envcap.evaluate.run import evaluate_scene
+from envcap.evaluate.sweep import Sweep, sample_positions
+from envcap.evaluate.truth import filter_truth, truth_grid_size
+from envcap.prefilter import convolve_exact
+from envcap.probeset.bake import bake_probe_set
+from envcap.probeset.store import read_probe_set, write_probe_set
+from envcap.runtime.chains import ProbeChains
+from envcap.runtime.methods import METHODS
+from envcap.runtime.methods.depth_reproject import depth_reproject
+from envcap.runtime.parallax import parallax
+from envcap.runtime.sampling import sample_street
+from envcap.runtime.street import RuntimeStreet
+from envcap.scene import load_scene
+from envcap.scene.segment import street_segment
 
 
 @pytest.fixture(scope="module")
 def planes_scene():
-    from envcap.scene import load_scene
-
     return street_segment(load_scene("planes"), 20.0)
 
 
 @pytest.fixture(scope="module")
 def planes_probes(planes_scene, gl_ctx):
-    from envcap.probeset.bake import bake_probe_set
-
     return bake_probe_set(planes_scene, resolution=32, spacing=10.0, ctx=gl_ctx, progress=False)
 
 
@@ -50,8 +61,6 @@ def _smooth_cube(n: int, seed: int = 0) -> np.ndarray:
 
 @pytest.mark.parametrize("w", [700.0, 64.0, 16.0, 1.0])
 def test_truth_filter_matches_float64_reference(gl_ctx, w):
-    from envcap.prefilter.filters import convolve_exact
-
     c = _smooth_cube(32)
     got = filter_truth(c, w, ctx=gl_ctx)
     m = truth_grid_size(w, 32)
@@ -74,11 +83,9 @@ def test_truth_grid_sizes():
 def test_own_position_gives_zero_error(planes_scene, planes_probes, gl_ctx, tmp_path):
     """Every method, evaluated at a probe's own position, reproduces its capture: exactly in
     memory (float32), and to float16 rounding after a write/read round trip."""
-    from envcap.probeset.store import read_probe_set, write_probe_set
-
     ps_mem = planes_probes
-    w1 = float(ps_mem.manifest["lobes"]["powers"][1])   # a ladder power: truth == bake level bit for bit
-    p0 = ps_mem.manifest["streets"][0]["probes"][0]["position"]
+    w1 = float(ps_mem.manifest.lobes.powers[1])   # a ladder power: truth == bake level bit for bit
+    p0 = ps_mem.manifest.streets[0].probes[0].position
     ps_disk = read_probe_set(write_probe_set(tmp_path / "ps", ps_mem, previews=False))
     for ps, tol in ((ps_mem, 1e-6), (ps_disk, 2e-3)):
         res = evaluate_scene(planes_scene, ps, positions=np.array([p0]), lobe_powers=(math.inf, w1), ctx=gl_ctx,
@@ -94,8 +101,6 @@ def test_planes_scene_parallax_converges_with_probe_resolution(planes_scene, gl_
     ``nearest`` keeps its parallax error.  Positions: lateral offsets up to 7 m, heights
     0.8-2.5 m, along offsets up to 3 m; sun out of the sky (see docs/evaluation.md: a splatted
     sun at a wall edge turns one texel of bilinear alpha into a 1e7 error)."""
-    from envcap.probeset.bake import bake_probe_set
-
     pos = np.array([[3.0, 0.8, 4.0], [-2.0, 2.5, -5.0], [0.0, 1.0, 7.0]])
     errs = {}
     for n in (16, 32, 64):
@@ -136,7 +141,7 @@ def test_depth_reproject_single_ground_plane():
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     planes = np.array([-100.0, 100.0, -2.0])
     r, ratio = depth_reproject(x, dirs, p, dist, planes, along=0)
-    r_ref, ratio_ref = px.parallax(x, dirs, p, planes, 0)  # exact: this scene is the ground plane
+    r_ref, ratio_ref = parallax(x, dirs, p, planes, 0)  # exact: this scene is the ground plane
     assert np.all(np.isfinite(r)) and np.all(np.isfinite(ratio))
     np.testing.assert_allclose(r[:3], r_ref[:3], atol=2e-2)
     np.testing.assert_allclose(ratio[:3], ratio_ref[:3], rtol=2e-2)
@@ -147,18 +152,18 @@ def test_depth_reproject_single_ground_plane():
 
 def test_predictor_matches_runtime_twin(planes_probes):
     """planes_mip and blend through the Predictor (local probe subset, street RGBA then sky) equal
-    ``envcap.runtime.parallax.sample_street`` over the whole street."""
+    ``envcap.runtime.sampling.sample_street`` over the whole street."""
     pr = Predictor(planes_probes)
-    street = px.RuntimeStreet.from_manifest(planes_probes.manifest["streets"][0])
-    powers = planes_probes.manifest["lobes"]["powers"]
+    street = RuntimeStreet.from_manifest(planes_probes.manifest.streets[0])
+    chains = ProbeChains(planes_probes.levels, planes_probes.manifest.lobes.powers)
     rng = np.random.default_rng(3)
     d = rng.normal(size=(500, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     w = np.exp(rng.uniform(0, 9, 500))
     for x in (np.array([2.5, 1.2, -4.0]), np.array([-7.0, 0.3, 8.5]), np.array([0.0, 2.0, 0.0])):
-        for method, blend in (("planes_mip", False), ("blend", True)):
+        for method in ("planes_mip", "blend"):
             got = pr.predict(method, "planes", x, d, w)
-            ref = px.sample_street(planes_probes.levels, planes_probes.sky_levels, street, x, d, w, powers, blend=blend)
+            ref = sample_street(chains, planes_probes.sky_levels, street, x, d, w, method)
             np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-9)
 
 
@@ -168,21 +173,19 @@ def test_sample_positions_bounds_and_determinism(planes_probes):
     a = sample_positions(m, sw)
     b = sample_positions(m, sw)
     assert [p.position for p in a] == [p.position for p in b]
-    st = m["streets"][0]
+    st = m.streets[0]
     for p in a:
         x = np.array(p.position)
-        assert st["planes"]["facade_min"] + 1.5 <= x[2] <= st["planes"]["facade_max"] - 1.5
+        assert st.planes.facade_min + 1.5 <= x[2] <= st.planes.facade_max - 1.5
         assert 0.3 <= x[1] <= 3.0
-        assert st["start"] + 2.0 <= x[0] <= st["end"] - 2.0
-        assert p.along <= 0.5 * m["probe_spacing"] + 1e-9
+        assert st.start + 2.0 <= x[0] <= st.end - 2.0
+        assert p.along <= 0.5 * m.probe_spacing + 1e-9
     # a street narrower than twice the margin is sampled on its probe line, not outside it
     narrow = sample_positions(m, Sweep(per_street=3, margin=50.0))
     assert all(p.lateral == 0.0 for p in narrow)
 
 
 def test_bad_inputs(planes_scene, planes_probes, gl_ctx):
-    from envcap.scene import load_scene
-
     kw = dict(ctx=gl_ctx, materials=(), keep_worst=0, floor_probes=0, lobe_powers=(math.inf,))
     with pytest.raises(ValueError, match="NaN or Inf"):
         evaluate_scene(planes_scene, planes_probes, positions=np.array([[0.0, np.nan, 0.0]]), **kw)
@@ -212,10 +215,6 @@ def test_hard_positions_stay_finite(planes_scene, planes_probes, gl_ctx):
 
 
 def test_report_and_cli(planes_scene, planes_probes, gl_ctx, tmp_path, capsys):
-    from envcap.cli import main
-    from envcap.evaluate.report import write_report
-    from envcap.probeset.store import write_probe_set
-
     res = evaluate_scene(planes_scene, planes_probes, sweep=Sweep(per_street=2), lobe_powers=(math.inf, 64.0),
                          ctx=gl_ctx, keep_worst=1, floor_probes=1, resolution=16)
     out = write_report([res], tmp_path / "rep")
@@ -248,9 +247,6 @@ def test_planes_mip_beats_nearest_in_open_streets(gl_ctx, name):
     where parallax matters most: planes_mip below nearest at the mirror and at w = 256, 64, 16
     (measured ratios 2.2-4.2).  In the narrow canyon the same small setting gives 0.93 at w = 16
     (1.05 on the full default sweep; docs/evaluation.md): not asserted, reported."""
-    from envcap.probeset.bake import bake_probe_set
-    from envcap.scene import load_scene
-
     sc = street_segment(load_scene(name), 20.0)
     ps = bake_probe_set(sc, resolution=32, spacing=10.0, ctx=gl_ctx, progress=False)
     res = evaluate_scene(sc, ps, sweep=Sweep(per_street=4), ctx=gl_ctx, materials=(), keep_worst=0, floor_probes=0,

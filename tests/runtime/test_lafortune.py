@@ -4,10 +4,10 @@ Eq. 3 approximation against a float64 quadrature of the same BRDF times the envi
 import numpy as np
 import pytest
 
-from envcap.runtime import parallax as px
 from envcap.runtime import synthetic_street as ss
 from envcap.gpu.glsl_harness import run_glsl
 from envcap.runtime.lafortune import Lafortune, convolved_reference, eq3, reflected_radiance_reference
+from envcap.runtime.shading import lafortune_lobe
 
 BODY = "o[i] = envcap_lafortune_lobe(v[i].xyz, c[i].xyz, c[i].w);"
 
@@ -25,7 +25,7 @@ def test_lobes_glsl_match_twin_on_1e6_random(gl_ctx):
     C = rng.uniform(-1.3, 1.3, (n, 3))
     w = np.exp(rng.uniform(np.log(0.01), np.log(1e4), n))
     got = gl_lobes(gl_ctx, v, C, w)
-    c, wt = px.lafortune_lobe(*(np.asarray(a, np.float32) for a in (v, C, w)), dtype=np.float32)
+    c, wt = lafortune_lobe(*(np.asarray(a, np.float32) for a in (v, C, w)), dtype=np.float32)
     assert np.all(np.isfinite(got))
     np.testing.assert_allclose(got[:, :3], c, rtol=0, atol=1e-6)
     # weight = exp2(w log2|Cv|) is ill-conditioned in float32: one rounding of |Cv| (2^-24
@@ -36,7 +36,7 @@ def test_lobes_glsl_match_twin_on_1e6_random(gl_ctx):
     rel = np.abs(got[big, 3] - wt[big]) / wt[big]
     assert np.all(rel <= 2e-6 * (1 + e[big]) + 2.5e-7 * w[big]), rel.max()
     # float64 twin against the closed form |Cv|^w 2 pi / (1 + w) max(c_z, 0), evaluated with **
-    c64, wt64 = px.lafortune_lobe(v, C, w)
+    c64, wt64 = lafortune_lobe(v, C, w)
     cv = C * v
     ln = np.linalg.norm(cv, axis=1)
     e64 = w * np.log2(ln)
@@ -53,7 +53,7 @@ def test_lobe_hard_cases(gl_ctx):
                   [-1, -1, -1], [1, 1, 1]], dtype=np.float64)
     w = np.array([5, 5, 0, 1e7, 500, -2, 1e7, 3, 1e7])
     got = gl_lobes(gl_ctx, v, C, w)
-    c, wt = px.lafortune_lobe(*(np.asarray(a, np.float32) for a in (v, C, w)), dtype=np.float32)
+    c, wt = lafortune_lobe(*(np.asarray(a, np.float32) for a in (v, C, w)), dtype=np.float32)
     assert np.all(np.isfinite(got)) and np.all(np.isfinite(wt))
     np.testing.assert_allclose(got[:, :3], c, atol=1e-6)
     np.testing.assert_allclose(got[:, 3], wt, rtol=3e-4, atol=0)

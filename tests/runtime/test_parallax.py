@@ -1,4 +1,4 @@
-"""Runtime GLSL (shaders/envcap_*.glsl) against its numpy twin (envcap.runtime.parallax), plus hand checks.
+"""Runtime GLSL (shaders/runtime/envcap_*.glsl) against its numpy twin (envcap.runtime.parallax, .mip), plus hand checks.
 
 References: the float32 numpy twin (same operation order) for GLSL; float64 geometry checks
 (hit point on a plane, inside the street) and envcap.core.lobes.z_of_w for the twin itself.
@@ -7,7 +7,9 @@ References: the float32 numpy twin (same operation order) for GLSL; float64 geom
 import numpy as np
 import pytest
 
+from envcap.runtime import limits, mip
 from envcap.runtime import parallax as px
+from envcap.runtime.street import RuntimeStreet
 from envcap.gpu.glsl_harness import run_glsl
 from envcap.core.lobes import z_of_w as z_ref
 
@@ -53,19 +55,19 @@ def random_inputs(n, along, seed):
 def run_gl(ctx, x, d, p, pl, w, along):
     f = lambda a: np.asarray(a, np.float32)
     return run_glsl(ctx, BODY, {"x": f(x), "d": f(d), "p": f(p), "pl": f(pl), "w": f(w)}, {"o_r": 4, "o_z": 4},
-                    uniforms={"along": along, "xk": px.lobe_table(POWERS, np.float32), "nlevels": POWERS.size},
+                    uniforms={"along": along, "xk": mip.lobe_table(POWERS, np.float32), "nlevels": POWERS.size},
                     declarations=DECL)
 
 
 def twin32(x, d, p, pl, w, along):
     f = [np.asarray(a, np.float32) for a in (x, d, p, pl, w)]
-    xk = px.lobe_table(POWERS, np.float32)
+    xk = mip.lobe_table(POWERS, np.float32)
     r, ratio = px.parallax(*f[:4], along, dtype=np.float32)
     xc = px.clamp_to_street(f[0], f[3], along, np.float32)
     t = px.exit_distance(xc, f[1], f[3], along, np.float32)
-    ws = px.shift_power(f[4], ratio, np.float32)
-    z = px.z_of_w(f[4], xk, np.float32)
-    zs = px.clamp_level(px.z_of_w(ws, xk, np.float32), POWERS.size, np.float32)
+    ws = mip.shift_power(f[4], ratio, np.float32)
+    z = mip.z_of_w(f[4], xk, np.float32)
+    zs = mip.clamp_level(mip.z_of_w(ws, xk, np.float32), POWERS.size, np.float32)
     return r, ratio, t, ws, z, zs
 
 
@@ -93,7 +95,7 @@ def test_float64_twin_geometry_hand_checked():
     xc = px.clamp_to_street(x, pl, along)
     assert np.all((xc[:, c] >= pl[:, 0]) & (xc[:, c] <= pl[:, 1]) & (xc[:, 1] >= pl[:, 2]))
     t = px.exit_distance(xc, d, pl, along)
-    hit = t < px.FAR
+    hit = t < limits.FAR
     h = xc + t[:, None] * d
     # The hit point lies on one of the three planes and inside (or on) the street.
     on = np.minimum.reduce([np.abs(h[:, c] - pl[:, 0]), np.abs(h[:, c] - pl[:, 1]), np.abs(h[:, 1] - pl[:, 2])])
@@ -107,10 +109,10 @@ def test_float64_twin_geometry_hand_checked():
     dp = np.linalg.norm(vec, axis=1)
     ok = hit & (dp > 1e-3)
     np.testing.assert_allclose(r[ok], vec[ok] / dp[ok, None], atol=1e-12)
-    want = np.clip(dp / np.maximum(t, px.MIN_DIST), 1 / px.MAX_RATIO, px.MAX_RATIO)
+    want = np.clip(dp / np.maximum(t, limits.MIN_DIST), 1 / limits.MAX_RATIO, limits.MAX_RATIO)
     np.testing.assert_allclose(ratio[ok], want[ok], rtol=1e-12)
     # z(w) twin loop equals the lobes module's interpolation (independent implementation)
-    np.testing.assert_allclose(px.z_of_w(w, px.lobe_table(POWERS)), z_ref(w, POWERS), atol=1e-12)
+    np.testing.assert_allclose(mip.z_of_w(w, mip.lobe_table(POWERS)), z_ref(w, POWERS), atol=1e-12)
 
 
 def hard_cases(along):
@@ -176,13 +178,13 @@ def test_hard_cases_finite_and_documented_fallbacks(gl_ctx, along):
     up_or_along = (d[:, 1] >= 0) & (d[:, 2 - along] == 0)
     np.testing.assert_array_equal(out["o_r"][up_or_along, :3], d[up_or_along].astype(np.float32))
     np.testing.assert_array_equal(out["o_r"][up_or_along, 3], 1.0)
-    np.testing.assert_array_equal(out["o_z"][up_or_along, 0], np.float32(px.FAR))
+    np.testing.assert_array_equal(out["o_z"][up_or_along, 0], np.float32(limits.FAR))
     # unit results and bounded ratio everywhere
     np.testing.assert_allclose(np.linalg.norm(out["o_r"][:, :3], axis=1), 1.0, atol=1e-6)
-    assert np.all((out["o_r"][:, 3] >= 1 / px.MAX_RATIO) & (out["o_r"][:, 3] <= px.MAX_RATIO))
+    assert np.all((out["o_r"][:, 3] >= 1 / limits.MAX_RATIO) & (out["o_r"][:, 3] <= limits.MAX_RATIO))
     # hit at the probe (second-to-last row): direction falls back to d, ratio clamps low
     np.testing.assert_array_equal(out["o_r"][-2, :3], d[-2].astype(np.float32))
-    assert out["o_r"][-2, 3] == np.float32(1 / px.MAX_RATIO)
+    assert out["o_r"][-2, 3] == np.float32(1 / limits.MAX_RATIO)
     assert out["o_z"][-2, 3] == POWERS.size - 1  # widest level (clamped)
     # levels stay inside the chain; w = 1e7 -> sharpest level, w <= 0 -> widest
     assert np.all((out["o_z"][:, 2:] >= 0) & (out["o_z"][:, 2:] <= POWERS.size - 1))
@@ -193,20 +195,20 @@ def test_clamp_level_and_z_outside_chain(gl_ctx):
     z = np.array([-5.0, -0.0, 0.0, 3.3, 7.0, 7.5, 100.0, np.inf, -np.inf, np.nan], dtype=np.float32)
     w = np.array([np.inf, 1e30, 1e7, 0.0, -3.0, np.nan, 1.0, 2.0, 1.5, 16382.0], dtype=np.float32)
     out = run_glsl(gl_ctx, "o[i] = vec4(envcap_clamp_level(z[i].x, nlevels), envcap_z_of_w(w[i].x, xk, nlevels), 0, 0);",
-                   {"z": z, "w": w}, {"o": 2}, uniforms={"xk": px.lobe_table(POWERS, np.float32), "nlevels": POWERS.size},
+                   {"z": z, "w": w}, {"o": 2}, uniforms={"xk": mip.lobe_table(POWERS, np.float32), "nlevels": POWERS.size},
                    declarations=DECL)["o"]
     want_z = np.array([0, 0, 0, 3.3, 7, 7, 7, 7, 0, 0], dtype=np.float32)
     np.testing.assert_allclose(out[:, 0], want_z, atol=1e-6)
-    np.testing.assert_allclose(px.clamp_level(z, POWERS.size, np.float32), want_z, atol=1e-6)
+    np.testing.assert_allclose(mip.clamp_level(z, POWERS.size, np.float32), want_z, atol=1e-6)
     want_w = np.array([0, 0, 0, 7, 7, 7, 7, 6, z_ref(1.5, POWERS), 0], dtype=np.float32)
     np.testing.assert_allclose(out[:, 1], want_w, atol=TOL_Z)
-    np.testing.assert_allclose(px.z_of_w(w, px.lobe_table(POWERS, np.float32), np.float32), want_w, atol=TOL_Z)
+    np.testing.assert_allclose(mip.z_of_w(w, mip.lobe_table(POWERS, np.float32), np.float32), want_w, atol=TOL_Z)
 
 
 def test_bad_arguments_raise():
     with pytest.raises(ValueError, match="axis"):
         px.parallax(np.zeros(3), np.array([1.0, 0, 0]), np.zeros(3), [-1, 1, 0], along=1)
     with pytest.raises(ValueError, match="decreasing"):
-        px.lobe_table([1.0, 2.0])
+        mip.lobe_table([1.0, 2.0])
     with pytest.raises(ValueError, match="facade_max"):
-        px.RuntimeStreet(0, np.zeros((1, 3)), np.array([[1.0, 1.0, 0.0]]), np.zeros(1, np.int64))
+        RuntimeStreet(0, np.zeros((1, 3)), np.array([[1.0, 1.0, 0.0]]), np.zeros(1, np.int64))

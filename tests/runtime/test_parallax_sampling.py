@@ -4,9 +4,12 @@ GLSL on llvmpipe against the numpy twin, the analytic street as ground truth, an
 import numpy as np
 import pytest
 
-from envcap.runtime import parallax as px
+from envcap.core import cube_sampling as cs
+from envcap.runtime.chains import ProbeChains
+from envcap.runtime.methods import BUILTIN
+from envcap.runtime.sampling import composite, sample_street
 from envcap.runtime import synthetic_street as ss
-from envcap.gpu.gl import CubeArrayTexture, cube_texture
+from envcap.gpu.cube_array import CubeArrayTexture, cube_texture
 from envcap.gpu.glsl_harness import run_glsl
 
 from runtime_fixtures import ARGS, DECL, probe_set
@@ -25,7 +28,7 @@ def scene(gl_ctx):
 def gl_sample(ctx, scene, fn, x, d, w):
     probes, sky, street, powers, pt, st = scene
     return run_glsl(ctx, f"o[i] = vec4({fn}(probes, sky, x[i].xyz, d[i].xyz, w[i].x, {ARGS}), 0);",
-                    {"x": x, "d": d, "w": w}, {"o": 3}, uniforms=street.uniforms(powers), declarations=DECL,
+                    {"x": x, "d": d, "w": w}, {"o": 3}, uniforms=street.uniforms(powers).values(), declarations=DECL,
                     probes=pt, sky=st)["o"]
 
 
@@ -33,18 +36,18 @@ def f32(a):
     return np.asarray(a, np.float32).astype(np.float64)
 
 
-@pytest.mark.parametrize("blend", [False, True])
-def test_sampled_values_glsl_match_twin(gl_ctx, scene, blend):
+@pytest.mark.parametrize("method", [m for m in BUILTIN if m.glsl], ids=lambda m: m.name)
+def test_sampled_values_glsl_match_twin(gl_ctx, scene, method):
+    """Every registered method that names a GLSL function: GLSL against the numpy method."""
     probes, sky, street, powers = scene[:4]
-    rng = np.random.default_rng(3 + blend)
+    rng = np.random.default_rng(4 if method.name == "blend" else 3)
     n = 200_000
     x = np.c_[rng.uniform(-5, 25, n), rng.uniform(-1, 15, n), rng.uniform(-7, 7, n)]
     d = rng.normal(size=(n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     w = np.exp(rng.uniform(np.log(0.1), np.log(1e6), n))
-    fn = "envcap_sample_blended" if blend else "envcap_sample_nearest"
-    got = gl_sample(gl_ctx, scene, fn, x, d, w)
-    ref = px.sample_street(probes, sky, street, f32(x), f32(d), f32(w), powers, blend=blend)
+    got = gl_sample(gl_ctx, scene, method.glsl, x, d, w)
+    ref = sample_street(ProbeChains(probes, powers), sky, street, f32(x), f32(d), f32(w), method)
     # Filtering tolerance: float32 differences in the lookup vector (~2e-7) and level (~5e-7)
     # move a bilinear/trilinear result by at most (gradient x step); measured max 2.2e-5 for
     # values up to 20 (1.1e-6 relative).  Stated bound: 4e-6 x the largest value.
@@ -63,7 +66,7 @@ def test_hard_inputs_through_full_lookup_are_finite(gl_ctx, scene):
     for w in (0.0, 1e7, -1.0):
         for fn, blend in (("envcap_sample_nearest", False), ("envcap_sample_blended", True)):
             got = gl_sample(gl_ctx, scene, fn, x, d, np.full(len(x), w))
-            ref = px.sample_street(probes, sky, street, x, d, max(w, 0.0), powers, blend=blend)
+            ref = sample_street(ProbeChains(probes, powers), sky, street, x, d, max(w, 0.0), "blend" if blend else "planes_mip")
             assert np.all(np.isfinite(got)) and np.all(np.isfinite(ref))
             np.testing.assert_allclose(got, ref, rtol=0, atol=4e-6 * np.abs(ref).max())
 
@@ -80,10 +83,9 @@ def test_parallax_is_closer_to_the_analytic_street_than_no_parallax():
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     truth = ss.environment_radiance(x, d, street.planes[0], 0)
     w = np.full(n, 1e9)   # level 0
-    with_px = px.sample_street(probes, sky, street, x, d, w, powers)
-    from envcap.core import cube_sampling as cs
+    with_px = sample_street(ProbeChains(probes, powers), sky, street, x, d, w)
     st = cs.sample_cube_array(probes, d, 0, 0.0)
-    without = px.composite(st, cs.sample_cube(sky, d, 0.0))
+    without = composite(st, cs.sample_cube(sky, d, 0.0))
     e_px = np.abs(with_px - truth).mean()
     e_no = np.abs(without - truth).mean()
     assert e_px < 0.35 * e_no, (e_px, e_no)
@@ -105,5 +107,5 @@ def test_blending_removes_popping_at_the_midpoint(gl_ctx, scene, d, w):
     assert np.argmax(step_n) == 2000 and step_n[2000] > 0.04       # the pop, at the midpoint
     assert step_b.max() <= 10.0 * 1e-3                              # bounded finite differences
     assert step_b[1995:2005].max() < 0.1 * step_n[2000]
-    twin = px.sample_street(probes, sky, street, f32(x), f32(dv), f32(wv), powers, blend=True)
+    twin = sample_street(ProbeChains(probes, powers), sky, street, f32(x), f32(dv), f32(wv), "blend")
     assert np.abs(np.diff(twin, axis=0)).max() <= 10.0 * 1e-3

@@ -1,0 +1,89 @@
+"""The evaluator's predictions: a probe set looked up through the runtime's numpy twin.
+
+Nothing here samples or blends on its own: each lookup is a registered runtime method
+(:mod:`envcap.runtime.methods`) on a runtime street, composited over the sky with
+:func:`envcap.runtime.sampling.composite`.  What the evaluator adds: the runtime street of each
+position is made of the :data:`LOCAL_PROBES` probes nearest to it (the runtime holds at most
+``MAX_PROBES`` per street; a long street has more), and a second sky chain (with the sun if the
+bake left it out, or without) so that both sky variants can be predicted.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from envcap.core.lobes import LobeLadder
+from envcap.evaluate.truth import with_alpha
+from envcap.prefilter import prefilter_chain
+from envcap.probeset.probe_set import ProbeSet
+from envcap.runtime import methods
+from envcap.runtime.chains import ProbeChains
+from envcap.runtime.methods import ParallaxMethod
+from envcap.runtime.sampling import composite, sample_sky
+from envcap.runtime.street import RuntimeStreet, StreetProbes
+
+LOCAL_PROBES = 4
+"""Probes of a street handed to the runtime twin per position (the nearest ones along it)."""
+
+
+class Predictor:
+    """Lookups of one probe set by any registered parallax method.
+
+    :meth:`street_rgba` returns the premultiplied street RGBA a method fetches, :meth:`sky_rgb`
+    the sky at the unshifted level, :meth:`predict` their composite (what
+    :func:`envcap.runtime.sampling.sample_street` returns).  ``x`` (3,) m, ``d`` (M, 3) unit,
+    ``w`` (M,) lobe powers (``inf`` = mirror).  With ``sky`` (an :class:`envcap.sky.Sky`) and
+    ``ctx``, the sky variant the bake did not store (with or without the sun) is filtered with the
+    probe set's ladder, so that both ``sun=True`` and ``sun=False`` lookups work.
+    """
+
+    def __init__(self, probe_set: ProbeSet, sky: Any = None, ctx: Any = None, quality: str = "default") -> None:
+        manifest = probe_set.manifest
+        self.chains = ProbeChains.from_probe_set(probe_set)
+        # The baked sky map holds the sun only when the manifest says so (bake default: no sun,
+        # the sun is an analytic light); the other variant is filtered here when a sky is given.
+        self.baked_sun = manifest.sky.sun_baked_in_map
+        self.sky_levels = {self.baked_sun: [np.asarray(a) for a in probe_set.sky_levels]}
+        if sky is not None:
+            ns = self.sky_levels[self.baked_sun][0].shape[1]
+            powers = tuple(float(p) for p in self.chains.powers)
+            lad = LobeLadder(tuple(max(ns >> k, 1) for k in range(len(powers))), powers)
+            self.sky_levels[not self.baked_sun] = prefilter_chain(
+                with_alpha(sky.cube(ns, include_sun=not self.baked_sun)), lad, quality=quality, ctx=ctx, progress=False)
+        self.streets = {st.name: StreetProbes.from_manifest(st) for st in manifest.streets}
+
+    def local_street(self, name: str, x: ArrayLike, planes: str = "nominal") -> RuntimeStreet:
+        """The runtime street of the :data:`LOCAL_PROBES` probes nearest ``x`` along street ``name``
+        with the plane set ``planes``."""
+        if name not in self.streets:
+            raise ValueError(f"probe set has no street named {name!r}")
+        return self.streets[name].local(x, LOCAL_PROBES, planes)
+
+    def sky_rgb(self, d: ArrayLike, w: ArrayLike, sun: bool | None = None) -> NDArray[np.float64]:
+        """Sky ``(M, 4)`` at the original directions and the unshifted level ``z(w)``.
+
+        ``sun``: with the sun splatted into the sky map or not; ``None``: the sky as baked."""
+        if sun is None:
+            sun = self.baked_sun
+        if sun not in self.sky_levels:
+            raise ValueError("no sky chain of that sun variant: construct the Predictor with sky= and ctx=")
+        d = np.asarray(d, np.float64).reshape(-1, 3)
+        w = np.broadcast_to(np.asarray(w, np.float64), d.shape[:1])
+        return sample_sky(self.sky_levels[sun], d, w, self.chains.xk)
+
+    def street_rgba(self, method: str | ParallaxMethod, street: str, x: ArrayLike, d: ArrayLike,
+                    w: ArrayLike) -> NDArray[np.float64]:
+        """Premultiplied street RGBA ``(M, 4)`` that ``method`` fetches from the probes."""
+        m = methods.get(method)
+        x = np.asarray(x, np.float64).reshape(3)
+        d = np.asarray(d, np.float64).reshape(-1, 3)
+        w = np.broadcast_to(np.asarray(w, np.float64), d.shape[:1])
+        return m(self.chains, self.local_street(street, x, m.planes), x, d, w)
+
+    def predict(self, method: str | ParallaxMethod, street: str, x: ArrayLike, d: ArrayLike, w: ArrayLike,
+                sun: bool | None = None) -> NDArray[np.float64]:
+        """Radiance ``(M, 3)``: street RGBA of ``method`` composited over the sky."""
+        return composite(self.street_rgba(method, street, x, d, w), self.sky_rgb(d, w, sun))

@@ -1,0 +1,162 @@
+"""Where the evaluator looks: sweeps of positions in the street volumes of a probe set.
+
+Conventions: world meters, +Y up; a street runs along world axis x or z between two facades
+(cross-axis coordinates ``facade_min < facade_max``) above its ground.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from envcap.probeset.manifest import Manifest, Street
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """Where to evaluate: ``per_street`` positions on every street of the probe set.
+
+    Along the street: jittered strata over the probes' span (half a spacing beyond the end
+    probes), at least ``end_margin`` m from the street's ends.  Lateral: uniform within the
+    facades minus ``margin`` m.  Height: uniform in ``heights`` m above the ground.  ``seed``
+    fixes everything (street ``i`` uses ``seed + i``).
+    """
+
+    per_street: int = 16
+    margin: float = 1.0
+    end_margin: float = 2.0
+    heights: tuple[float, float] = (0.3, 3.0)
+    seed: int = 5
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.per_street, int) and self.per_street >= 1):
+            raise ValueError(f"sweep: per_street must be a positive integer, got {self.per_street!r}")
+        vals = (self.margin, self.end_margin, *self.heights)
+        if not all(math.isfinite(v) for v in vals) or self.margin < 0 or self.end_margin < 0:
+            raise ValueError(f"sweep: margins must be finite and >= 0, got {self.margin}, {self.end_margin}")
+        if not 0 < self.heights[0] <= self.heights[1]:
+            raise ValueError(f"sweep: heights must satisfy 0 < low <= high, got {self.heights}")
+
+
+DEFAULT_SWEEP = Sweep()
+QUICK_SWEEP = Sweep(per_street=6)
+
+
+@dataclass(frozen=True)
+class EvalPosition:
+    """One evaluation position: ``position`` (3,) m on street ``street``; ``lateral`` signed
+    offset (m) from the street's probe line on its cross axis; ``along`` (m) distance along the
+    street to the nearest probe; ``height`` (m) above the ground; ``near_crossing``: inside
+    another street's roadway (the three planes of this street are wrong there)."""
+
+    street: str
+    index: int
+    position: tuple[float, float, float]
+    lateral: float
+    along: float
+    height: float
+    near_crossing: bool
+
+
+@dataclass(frozen=True)
+class StreetExtent:
+    """The volume of one street of a probe set: ``along`` / ``cross`` world axis indices, probe
+    coordinates ``probe_s`` (m, ascending) along it, facades ``fmin`` < ``fmax`` (m, cross axis),
+    ``ground`` height, street ``start`` .. ``end`` (m, along) and the probe line ``center`` (m, cross)."""
+
+    name: str
+    along: int
+    cross: int
+    probe_s: NDArray[np.float64]
+    fmin: float
+    fmax: float
+    ground: float
+    start: float
+    end: float
+    center: float
+
+    @staticmethod
+    def from_manifest(street: Street) -> "StreetExtent":
+        """The extent of a manifest street (its nominal planes, extent, center line and probes)."""
+        if not street.probes:
+            raise ValueError(f"street {street.name!r} has no probes")
+        along = street.along_index
+        s = sorted(float(p.position[along]) for p in street.probes)
+        pl = street.planes
+        return StreetExtent(street.name, along, street.cross_index, np.array(s), float(pl.facade_min),
+                            float(pl.facade_max), float(pl.ground), float(street.start), float(street.end),
+                            float(street.center))
+
+    def contains(self, x: NDArray[np.float64]) -> bool:
+        """Whether ``x`` (3,) lies between the facades and the street's ends (any height)."""
+        return bool(self.fmin <= x[self.cross] <= self.fmax and self.start <= x[self.along] <= self.end)
+
+    def position(self, index: int, x: NDArray[np.float64], streets: Sequence["StreetExtent"],
+                 height: float | None = None) -> EvalPosition:
+        """The :class:`EvalPosition` of ``x`` (3,) on this street (``streets``: all of the probe set;
+        ``height`` above the ground if known exactly, else ``x[1] - ground``)."""
+        return EvalPosition(self.name, index, (float(x[0]), float(x[1]), float(x[2])),
+                            float(x[self.cross] - self.center), float(np.min(np.abs(self.probe_s - x[self.along]))),
+                            float(x[1] - self.ground if height is None else height),
+                            any(o.contains(x) for o in streets if o.name != self.name))
+
+
+def _extents(manifest: Manifest) -> list[StreetExtent]:
+    streets = manifest.streets
+    if not streets:
+        raise ValueError("probe set has no streets: nothing to evaluate")
+    return [StreetExtent.from_manifest(st) for st in streets]
+
+
+def sample_positions(manifest: Manifest, sweep: Sweep = DEFAULT_SWEEP) -> list[EvalPosition]:
+    """Evaluation positions for every street of a probe-set ``manifest`` (see :class:`Sweep`).
+
+    A street narrower than ``2 * margin`` is sampled on its probe line; one whose usable span is
+    empty at the middle of its probes.  Deterministic for a given ``sweep.seed``.
+    """
+    extents = _extents(manifest)
+    out: list[EvalPosition] = []
+    for k, ext in enumerate(extents):
+        rng = np.random.default_rng(sweep.seed + k)
+        s = ext.probe_s
+        half = 0.5 * (s[1] - s[0]) if s.size > 1 else 0.5 * float(manifest.probe_spacing)
+        lo = max(ext.start + sweep.end_margin, s[0] - half)
+        hi = min(ext.end - sweep.end_margin, s[-1] + half)
+        if not hi > lo:
+            lo = hi = 0.5 * (s[0] + s[-1])
+        clo, chi = ext.fmin + sweep.margin, ext.fmax - sweep.margin
+        if not chi > clo:
+            clo = chi = ext.center
+        n = sweep.per_street
+        alongs = lo + (hi - lo) * (np.arange(n) + rng.uniform(0, 1, n)) / n
+        crosses = rng.uniform(clo, chi, n)
+        heights = rng.uniform(sweep.heights[0], sweep.heights[1], n)
+        for i in range(n):
+            x = np.zeros(3)
+            x[ext.along] = alongs[i]
+            x[ext.cross] = crosses[i]
+            x[1] = ext.ground + heights[i]
+            out.append(ext.position(len(out), x, extents, heights[i]))
+    return out
+
+
+def positions_from_array(manifest: Manifest, positions: ArrayLike) -> list[EvalPosition]:
+    """:class:`EvalPosition` for explicit world positions ``(P, 3)`` (m): each is assigned to the
+    street whose volume holds it, else the street with the nearest probe line."""
+    p = np.asarray(positions, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] < 1:
+        raise ValueError(f"positions must have shape (P, 3) with P >= 1, got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("positions contain NaN or Inf")
+    extents = _extents(manifest)
+
+    def cost(ext: StreetExtent, x: NDArray[np.float64]) -> float:
+        if ext.contains(x):
+            return -1.0
+        return abs(x[ext.cross] - ext.center) + max(0.0, ext.start - x[ext.along], x[ext.along] - ext.end)
+
+    return [extents[int(np.argmin([cost(e, x) for e in extents]))].position(i, x, extents) for i, x in enumerate(p)]

@@ -1,0 +1,57 @@
+"""A probe set's textures as the numpy twin samples them: the probes' cosine-lobe chains (a
+cube-map array per level), the lobe table, and the optional distance channel.
+
+Texture lookups go through :mod:`envcap.core.cube_sampling` (the GL sampler's twin: seamless
+trilinear).  Conventions: cubes ``(6, N, N, C)`` (``envcap/core/cube.py``); premultiplied RGBA.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from envcap.core import cube_sampling
+from envcap.probeset.probe_set import ProbeSet
+from envcap.runtime.mip import level_of_power, lobe_table
+
+
+@dataclass(frozen=True)
+class ProbeChains:
+    """``levels[k]``: ``(L, 6, N_k, N_k, 4)`` premultiplied street RGBA of the ``L`` probes (cube-array
+    layers) convolved with the normalized cos^powers[k] lobe; ``powers``: the strictly decreasing
+    lobe table (one power per level); ``distance``: ``(L, 6, N, N)`` radial distance (m) from each
+    probe to what it sees, 0 where the sky shows, or ``None`` (stored as float64)."""
+
+    levels: Sequence[NDArray]
+    powers: NDArray[np.float64]
+    distance: NDArray[np.float64] | None = None
+    xk: NDArray[np.float64] = field(init=False, repr=False)
+    """``lobe_table(powers)``: the z(w) table."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "powers", np.asarray(self.powers, np.float64))
+        if self.powers.shape != (len(self.levels),):
+            raise ValueError(f"need one lobe power per level: {len(self.levels)} levels, powers {self.powers.shape}")
+        if self.distance is not None:
+            object.__setattr__(self, "distance", np.asarray(self.distance, np.float64))
+        object.__setattr__(self, "xk", lobe_table(self.powers))
+
+    @staticmethod
+    def from_probe_set(probe_set: ProbeSet) -> "ProbeChains":
+        """The chains of a probe set (its ``levels``, the manifest's lobe powers, its ``distance``)."""
+        levels = [np.asarray(a) for a in probe_set.levels]
+        powers = probe_set.manifest.lobe_powers
+        if powers is None or len(powers) != len(levels):
+            raise ValueError("probe set has no lobe ladder (baked without filtered levels): cannot evaluate lobes")
+        return ProbeChains(levels, np.array([float(p) for p in powers]), probe_set.distance)
+
+    def level(self, w: ArrayLike) -> NDArray[np.float64]:
+        """The clamped continuous level a lookup of lobe power ``w`` samples."""
+        return level_of_power(w, self.xk)
+
+    def fetch(self, r: ArrayLike, layer: ArrayLike, w: ArrayLike) -> NDArray[np.float64]:
+        """RGBA ``(..., 4)`` of probe ``layer`` along unit ``r`` ``(..., 3)`` at the level of power ``w``."""
+        return cube_sampling.sample_cube_array(self.levels, r, layer, self.level(w))
