@@ -47,3 +47,21 @@ def test_the_graph_sees_a_planted_cycle_and_private_import(tmp_path):
 
 def test_repo_root_is_the_checkout():
     assert (REPO / "envcap" / "__init__.py").is_file()
+
+
+def test_every_module_is_named_in_the_architecture_page():
+    """docs/architecture.md names every package (``core/``) and every module (by its file name,
+    in backquotes), so the page cannot silently drift from the tree again."""
+    page = (REPO / "docs" / "architecture.md").read_text()
+    missing = []
+    for name, path in import_graph().modules.items():
+        parts = name.split(".")
+        if len(parts) < 2 or parts[-1] in ("__init__", "__main__"):
+            continue
+        if path.name == "__init__.py":
+            token = f"`{parts[-1]}/`"
+        else:
+            token = f"`{parts[-1]}`"
+        if token not in page and f"`{'/'.join(parts[1:])}" not in page and f"{parts[-1]}.py" not in page:
+            missing.append(name)
+    assert missing == []
