@@ -14,14 +14,14 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import Rectangle
 
-from envcap.capture.renderer import CubeCapture, chunk_face_visibility
-from envcap.gpu.gl import create_context
+from envcap.capture.culling import chunk_face_visibility
+from envcap.capture.renderer import CubeCapture
+from envcap.gpu.context import create_context
 from envcap.formats.png_preview import cross_image
 from envcap.scene import load_scene
-from envcap.sky.sky import sky_from_spec
 
 sc = load_scene("canyon")
-sky = sky_from_spec(sc.sky, sc.base_dir)
+sky = sc.sky.build()
 ctx = create_context()
 p = np.array([10.3, 1.7, 0.4])
 with CubeCapture.from_scene(sc, 128, sky=sky, ctx=ctx) as cap:

@@ -11,14 +11,13 @@ from PIL import Image
 from envcap.capture.renderer import CubeCapture
 from envcap.formats.png_preview import cube_cross_png
 from envcap.scene import load_scene
-from envcap.sky.sky import sky_from_spec
 
 OUT = Path(__file__).resolve().parent / "readme_probe_canyon.png"
 
 
 def main() -> None:
     scene = load_scene("canyon")
-    sky = sky_from_spec(scene.sky, scene.base_dir)
+    sky = scene.sky.build()
     with CubeCapture.from_scene(scene, 64, sky=sky) as cap:
         probe = cap.capture([0.0, 2.0, 0.0])
     sky_cube = sky.cube(64)
