@@ -14,15 +14,29 @@ face stretched by ``N / (N - 1)`` about its center: at most half a texel at the 
 
 from __future__ import annotations
 
+import ctypes
+import io
 import os
+import sys
+import tempfile
+from contextlib import contextmanager, redirect_stderr, redirect_stdout
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 from numpy.typing import NDArray
 
-from envcap.core.atomic import atomic_output_file
+from envcap.core.image_read import one_line
+from envcap.outputs import atomic_output_file
 
 HALF_MAX = float(np.finfo(np.float16).max)
+
+
+class ExrDataError(ValueError):
+    """An OpenEXR file whose pixel data cannot be used as it is: truncated or corrupt, NaN / Inf
+    texels, or (read as radiance) negative R, G or B.  Reading it as another kind of image would
+    not help, so callers that try several readers stop at this one."""
+
 
 # Per face (GL order): (flip rows, flip columns) taking an envcap face to OpenEXR's and back.
 EXR_FACE_FLIPS: tuple[tuple[bool, bool], ...] = (
@@ -114,13 +128,73 @@ def write_exr_cube(
     return final
 
 
-def read_exr_cube(path: str | os.PathLike[str]) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
+def _flush_c_stdio() -> None:
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):  # no C library to ask (not on Linux/macOS)
+        pass
+
+
+@contextmanager
+def _library_output_held() -> Iterator[list[str]]:
+    # On a corrupt file the OpenEXR binding prints a warning through Python's sys.stdout and the
+    # library prints its own on file descriptor 2: hold both (the yielded list gets the text when
+    # the block ends) so that the error stays one line.  Where the descriptors cannot be
+    # duplicated only the Python-level output is held.
+    held: list[str] = []
+    text = io.StringIO()
+    for stream in (sys.stdout, sys.stderr):  # what is already written goes out first
+        if stream is not None:
+            stream.flush()
+    with redirect_stdout(text), redirect_stderr(text):
+        try:
+            saved = [os.dup(1), os.dup(2)]
+        except (OSError, ValueError):
+            try:
+                yield held
+            finally:
+                held.append(text.getvalue())
+            return
+        with tempfile.TemporaryFile() as tmp:
+            os.dup2(tmp.fileno(), 1)
+            os.dup2(tmp.fileno(), 2)
+            try:
+                yield held
+            finally:
+                _flush_c_stdio()  # C/C++ output still buffered goes to the held file, not after it
+                os.dup2(saved[0], 1)
+                os.dup2(saved[1], 2)
+                for fd in saved:
+                    os.close(fd)
+                tmp.seek(0)
+                held.append(text.getvalue() + tmp.read().decode(errors="replace"))
+
+
+def _read_exr(p: Path, header_only: bool) -> tuple[dict, dict[str, NDArray]]:
+    # The header and (unless header_only) every channel as its own 2-D array; ExrDataError if
+    # the binding cannot read the file.
+    import OpenEXR
+
+    try:
+        with _library_output_held() as held, OpenEXR.File(str(p), separate_channels=True, header_only=header_only) as f:
+            header = dict(f.header())  # the binding clears its own dict when the file closes
+            chans = {} if header_only else {k: np.array(c.pixels) for k, c in f.channels().items()}
+    except Exception as e:  # the binding raises several types for corrupt data
+        detail = one_line("\n".join([str(e), *held]))
+        raise ExrDataError(f"{p}: truncated or corrupt OpenEXR file ({detail})") from e
+    return header, chans
+
+
+def read_exr_cube(path: str | os.PathLike[str], *, radiance: bool = False
+                  ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
     """Read an OpenEXR cube env map into ``(rgba (6, N, N, 4) float32, distance (6, N, N) | None)``.
 
     Faces come back in envcap/GL orientation.  A file without an ``A`` channel gets alpha 1;
     ``distance`` is the ``Z`` channel or ``None``.  Raises ``FileNotFoundError`` for a missing
     file and ``ValueError`` for a file that is not an EXR, not a cube env map, not ``N`` by
-    ``6N``, lacks R, G or B, or holds NaN / Inf.
+    ``6N`` or lacks R, G or B; :class:`ExrDataError` (a ``ValueError``, one line naming the file)
+    for a truncated or corrupt file, NaN / Inf texels (with their count) and, with
+    ``radiance=True`` (an input environment map), negative R, G or B (with their count).
     """
     import OpenEXR
 
@@ -129,14 +203,10 @@ def read_exr_cube(path: str | os.PathLike[str]) -> tuple[NDArray[np.float32], ND
         raise FileNotFoundError(f"EXR file not found: {p}")
     if not OpenEXR.isOpenExrFile(str(p)):
         raise ValueError(f"{p} is not an OpenEXR file")
-    try:
-        with OpenEXR.File(str(p), separate_channels=True) as f:
-            header = dict(f.header())  # the binding clears its own dict when the file closes
-            chans = {k: np.array(c.pixels) for k, c in f.channels().items()}
-    except Exception as e:  # the binding raises several types for corrupt data
-        raise ValueError(f"{p}: cannot read OpenEXR data ({e})") from e
+    header, _ = _read_exr(p, header_only=True)  # a lat-long image is told apart before its pixels are read
     if header.get("envmap") != OpenEXR.ENVMAP_CUBE:
         raise ValueError(f"{p}: not a cube environment map (envmap attribute is {header.get('envmap')!r})")
+    _, chans = _read_exr(p, header_only=False)
     missing = [c for c in "RGB" if c not in chans]
     if missing:
         raise ValueError(f"{p}: missing channel(s) {missing}; have {sorted(chans)}")
@@ -145,11 +215,17 @@ def read_exr_cube(path: str | os.PathLike[str]) -> tuple[NDArray[np.float32], ND
         raise ValueError(f"{p}: a cube env map must be N wide and 6N tall, got {w}x{h}")
     alpha = chans.get("A", np.ones((h, w)))
     img = np.stack([chans["R"], chans["G"], chans["B"], alpha], axis=-1).astype(np.float32)
-    if not np.all(np.isfinite(img)):
-        raise ValueError(f"{p}: RGBA holds NaN or Inf")
+    nonfinite = int(np.count_nonzero(~np.all(np.isfinite(img), axis=-1)))
+    if nonfinite:
+        raise ExrDataError(f"{p}: RGBA holds NaN or Inf in {nonfinite} texel(s) of {6 * w * w}")
+    if radiance:
+        negative = int(np.count_nonzero(np.any(img[..., :3] < 0, axis=-1)))
+        if negative:
+            raise ExrDataError(f"{p}: {negative} texel(s) of {6 * w * w} have negative R, G or B "
+                               f"(radiance must be >= 0; smallest {float(img[..., :3].min()):g})")
     dist = None
     if "Z" in chans:
         dist = exr_image_to_cube(chans["Z"].astype(np.float32))
         if not np.all(np.isfinite(dist)):
-            raise ValueError(f"{p}: Z (distance) holds NaN or Inf")
+            raise ExrDataError(f"{p}: Z (distance) holds NaN or Inf in {int(np.count_nonzero(~np.isfinite(dist)))} texel(s)")
     return np.ascontiguousarray(exr_image_to_cube(img)), dist

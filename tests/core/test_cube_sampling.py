@@ -5,7 +5,7 @@ import pytest
 
 from envcap.core import cube
 from envcap.core import cube_sampling as cs
-from envcap.gpu.gl import CubeArrayTexture, cube_texture
+from envcap.gpu.cube_array import CubeArrayTexture, cube_texture
 from envcap.gpu.glsl_harness import run_glsl
 
 # Measured: |GL - twin| <= 6e-7 for N <= 8 with texel values in [0, 1] (float32 (s, t) in GL).

@@ -1,16 +1,22 @@
-"""envcap.latlong against hand-derived directions, float64 integrals, and OpenEXR's exrenvmap."""
+"""envcap.core.latlong against hand-derived directions, float64 integrals, brute-force resampling and OpenEXR's exrenvmap."""
 
 import math
 import shutil
 import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import OpenEXR
+import OpenImageIO as oiio
 import pytest
+from PIL import Image
 
 from envcap.core import cube
-from envcap.core.latlong import (cube_texel_average, cube_to_latlong, direction_to_latlong_xy, latlong_directions,
-                            latlong_solid_angles, latlong_to_cube, load_latlong, read_latlong, sample_latlong)
+from envcap.core.latlong import (cube_texel_average, cube_to_latlong, direction_to_latlong_xy, latlong_box_average,
+                                 latlong_directions, latlong_solid_angles, latlong_to_cube, load_latlong, read_latlong,
+                                 sample_latlong)
+from envcap.formats.ktx2 import read_ktx2
 
 
 @pytest.mark.parametrize("h,w", [(1, 2), (2, 4), (3, 6), (64, 128), (1000, 2000), (7, 3)])
@@ -204,3 +210,178 @@ def test_load_latlong_errors_name_the_problem(tmp_path):
     OpenEXR.File({"type": OpenEXR.scanlineimage}, {"Y": np.ones((4, 8), np.float32)}).write(str(tmp_path / "y.exr"))
     with pytest.raises(ValueError, match="channel"):
         load_latlong(tmp_path / "y.exr")
+
+
+# --------------------------------------------------------------- large images: tiles, bands, box average
+
+def _brute_force_box_average(img, n):
+    # float64, every pixel at once: the solid-angle-weighted mean of the pixels whose centers fall
+    # in each texel (np.add.at, no bands).
+    h, w, c = img.shape
+    f, t, s = cube.direction_to_texel(latlong_directions(h, w), n)
+    omega = latlong_solid_angles(h, w)
+    num = np.zeros((6, n, n, c))
+    den = np.zeros((6, n, n))
+    np.add.at(num, (f, t, s), img.astype(np.float64) * omega[..., None])
+    np.add.at(den, (f, t, s), omega)
+    return num / den[..., None], den
+
+
+def _spot_image(h, w, seed=5):
+    rng = np.random.default_rng(seed)
+    img = rng.random((h, w, 3)).astype(np.float32)
+    img[h // 3, w // 7] = [1e6, 5e5, 2e5]  # a one-pixel sun
+    return img
+
+
+@pytest.mark.parametrize("n", [8, 64])
+def test_box_average_in_bands_equals_float64_brute_force(n):
+    img = _spot_image(256, 512)
+    with np.errstate(invalid="ignore"):
+        ref, den = _brute_force_box_average(img, n)
+    got = latlong_box_average(img, n, band_pixels=3000)  # 5 rows a band: 52 bands
+    assert got.dtype == np.float32 and got.shape == (6, n, n, 3)
+    full = den > 0
+    np.testing.assert_allclose(got[full], ref[full], rtol=2e-7, atol=0)  # float32 rounding of the float64 sums
+    # 512 pixels around the equator: 16 a texel at n = 8, none empty; 2 a texel at n = 64, where
+    # some corner texels hold no pixel center and get the bilinear lookup at their center.
+    f, t, s = np.nonzero(~full)
+    assert (f.size == 0) == (n == 8)
+    np.testing.assert_allclose(got[~full], sample_latlong(img, cube.texel_directions(n)[f, t, s]), rtol=1e-6)
+
+
+def _brute_force_supersampled(img, n, ss):
+    # Independent of cube_texel_average: per texel, ss x ss sub-sample centers, direction by the
+    # face table of docs/conventions.md, bilinear lookup written out here, weights (1+u^2+v^2)^-1.5.
+    h, w, c = img.shape
+    a = img.astype(np.float64)
+    out = np.zeros((6, n, n, c))
+    sub = (np.arange(ss) + 0.5) / ss
+    for f in range(6):
+        for t in range(n):
+            for s in range(n):
+                uu, vv = np.meshgrid((s + sub) / n * 2 - 1, (t + sub) / n * 2 - 1)
+                one = np.ones_like(uu)
+                x, y, z = [(one, -vv, -uu), (-one, -vv, uu), (uu, one, vv), (uu, -one, -vv), (uu, -vv, one),
+                           (-uu, -vv, -one)][f]
+                r = np.sqrt(x * x + y * y + z * z)
+                lat = np.arcsin(np.clip(y / r, -1, 1))
+                lon = np.arctan2(x, z)
+                px = (0.5 - lon / (2 * math.pi)) * w - 0.5
+                py = np.clip((0.5 - lat / math.pi) * h - 0.5, 0, h - 1)
+                x0 = np.floor(px)
+                y0 = np.minimum(np.floor(py), h - 1)
+                fx, fy = (px - x0)[..., None], (py - y0)[..., None]
+                x0 = x0.astype(int) % w
+                x1 = (x0 + 1) % w
+                y0 = y0.astype(int)
+                y1 = np.minimum(y0 + 1, h - 1)
+                val = ((a[y0, x0] * (1 - fx) + a[y0, x1] * fx) * (1 - fy) + (a[y1, x0] * (1 - fx) + a[y1, x1] * fx) * fy)
+                wgt = (1 + uu * uu + vv * vv) ** -1.5
+                out[f, t, s] = np.einsum("ijc,ij->c", val, wgt) / wgt.sum()
+    return out
+
+
+def test_tiled_supersampling_equals_brute_force_and_does_not_depend_on_tiles():
+    img = _spot_image(64, 128)
+    n, ss = 8, 4
+    ref = _brute_force_supersampled(img, n, ss)
+    whole = cube_texel_average(lambda d: sample_latlong(img, d), n, ss, tile_texels=10**6)
+    for tile in (1, 7, 100):  # one row of one face per tile; rows split across faces
+        np.testing.assert_array_equal(cube_texel_average(lambda d: sample_latlong(img, d), n, ss, tile_texels=tile),
+                                      whole)
+    np.testing.assert_allclose(whole, ref, rtol=1e-9)
+    np.testing.assert_array_equal(latlong_to_cube(img, n, ss), whole.astype(np.float32))
+
+
+def test_latlong_to_cube_picks_box_for_images_finer_than_the_cube():
+    fine = _spot_image(256, 512)
+    for n in (1, 8, 32):  # 512 / (4 n) = 128, 16, 4 pixels a texel along the equator: box average
+        np.testing.assert_array_equal(latlong_to_cube(fine, n), latlong_box_average(fine, n))
+    # Below 4 pixels a texel: supersampled bilinear with the default ss = ceil(W / 4n) (unchanged).
+    for n, ss in ((33, 4), (64, 2)):
+        np.testing.assert_array_equal(latlong_to_cube(fine, n),
+                                      cube_texel_average(lambda d: sample_latlong(fine, d), n, ss).astype(np.float32))
+    # An explicit supersample is always honoured.
+    np.testing.assert_array_equal(latlong_to_cube(fine, 4, supersample=2),
+                                  cube_texel_average(lambda d: sample_latlong(fine, d), 4, 2).astype(np.float32))
+
+
+def test_box_average_keeps_the_energy_of_a_one_pixel_sun():
+    # A single bright pixel anywhere: sum over texels of L * Omega against the pixel's L * omega.
+    # The box average moves it whole into one texel (error: that texel's pixel-vs-texel area
+    # mismatch, a few %); 16 x 16 bilinear lookups a texel (the old default at 16 pixels a texel)
+    # weighed it by where lookups happened to fall: errors of 100 % and more.
+    h, w, n = 256, 512, 8
+    omega = latlong_solid_angles(h, w)
+    rng = np.random.default_rng(11)
+    box_err, ss_err = [], []
+    for _ in range(12):
+        img = np.zeros((h, w, 1), np.float32)
+        y, x = rng.integers(0, h), rng.integers(0, w)
+        img[y, x] = 1.0
+        for out, c in ((box_err, latlong_to_cube(img, n)), (ss_err, latlong_to_cube(img, n, supersample=16))):
+            out.append(abs(np.sum(c[..., 0].astype(np.float64) * cube.texel_solid_angles(n)) / omega[y, x] - 1))
+    assert max(box_err) < 0.08 and max(ss_err) > 0.5, (max(box_err), max(ss_err))
+
+
+# ------------------------------------------------------------------------- reading: LDR, bands, tiles
+
+def test_ldr_png_is_decoded_from_srgb_with_one_warning_line(tmp_path, capfd):
+    px = np.zeros((8, 16, 3), np.uint8)
+    px[..., 0], px[..., 1], px[..., 2] = 128, 255, 10
+    Image.fromarray(px).save(tmp_path / "sky.png")
+    img = load_latlong(tmp_path / "sky.png")
+    # IEC 61966-2-1: ((128/255 + 0.055) / 1.055)^2.4 = 0.2158605; 255 -> 1; 10/255 <= 0.04045 -> /12.92.
+    np.testing.assert_allclose(img[..., 0], 0.2158605, rtol=1e-6)
+    np.testing.assert_allclose(img[..., 1], 1.0, rtol=1e-7)
+    np.testing.assert_allclose(img[..., 2], 10 / 255 / 12.92, rtol=1e-6)
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "sky.png" in err[0] and "sRGB" in err[0] and "uint8" in err[0], err
+    _write_exr(tmp_path / "sky.exr", np.full((8, 16, 3), 0.5, np.float32))
+    np.testing.assert_array_equal(load_latlong(tmp_path / "sky.exr"), 0.5)  # HDR: as stored, no warning
+    assert capfd.readouterr().err == ""
+
+
+def test_bands_and_tiles_read_the_same_pixels_and_find_the_first_bad_one(tmp_path):
+    h, w = 768, 1536  # 1.18 M pixels: two bands of 682 rows (BAND_PIXELS = 2^20)
+    rgb = np.random.default_rng(7).random((h, w, 3)).astype(np.float32)
+    _write_exr(tmp_path / "scan.exr", rgb)
+    np.testing.assert_array_equal(load_latlong(tmp_path / "scan.exr"), rgb)
+    spec = oiio.ImageSpec(w, h, 3, "float")
+    spec.tile_width = spec.tile_height = 64
+    out = oiio.ImageOutput.create(str(tmp_path / "tiled.exr"))
+    assert out.open(str(tmp_path / "tiled.exr"), spec) and out.write_image(rgb)
+    out.close()
+    np.testing.assert_array_equal(load_latlong(tmp_path / "tiled.exr"), rgb)
+    rgb[700, 3, 1] = -1.0  # second band only
+    rgb[750, 9, 0] = np.inf
+    _write_exr(tmp_path / "bad.exr", rgb)
+    with pytest.raises(ValueError, match=r"bad.exr has 2 bad texel\(s\) \(1 with NaN/Inf, the rest negative\); "
+                                         r"first at pixel \(x=3, y=700\)"):
+        load_latlong(tmp_path / "bad.exr")
+
+
+def test_truncated_exr_is_one_line_naming_the_file(tmp_path, capfd):
+    _write_exr(tmp_path / "ok.exr", np.random.default_rng(1).random((64, 128, 3)))
+    data = (tmp_path / "ok.exr").read_bytes()
+    (tmp_path / "cut.exr").write_bytes(data[: len(data) * 2 // 3])
+    (tmp_path / "tiny.exr").write_bytes(data[:40])
+    for name in ("cut.exr", "tiny.exr"):
+        with pytest.raises(ValueError) as e:
+            load_latlong(tmp_path / name)
+        assert name in str(e.value) and "\n" not in str(e.value), str(e.value)
+    assert capfd.readouterr().err == ""
+
+
+def test_prefilter_of_a_png_uses_linear_radiance_and_warns_once(tmp_path):
+    # Issue 9: a PNG given to `envcap prefilter` was read as linear (sRGB 128 -> 0.502).
+    Image.fromarray(np.full((16, 32, 3), 128, np.uint8)).save(tmp_path / "sky.png")
+    r = subprocess.run([sys.executable, "-m", "envcap", "prefilter", str(tmp_path / "sky.png"), "--out",
+                        str(tmp_path / "o"), "--size", "4", "--quality", "fast"], capture_output=True, text=True,
+                       timeout=120, cwd=Path(__file__).resolve().parents[2])
+    assert r.returncode == 0, r.stderr
+    err = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(err) == 1 and err[0].startswith("envcap: warning: ") and "sRGB" in err[0], r.stderr
+    levels, _ = read_ktx2(tmp_path / "o" / "chain.ktx2")
+    np.testing.assert_allclose(levels[0][..., :3], 0.2158605, rtol=1e-6)
