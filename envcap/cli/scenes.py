@@ -5,7 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from envcap.gpu.context import create_context
 from envcap.outputs.guard import check_writable, resolve_output
+from envcap.scene import list_scenes, load_scene, scene_path
+from envcap.scene.scene_preview import save_previews
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -19,8 +22,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from envcap.scene import list_scenes, load_scene, scene_path
-
     if args.scene:
         names = [(s, "") for s in args.scene]
         for s, _ in names:
@@ -34,8 +35,6 @@ def run(args: argparse.Namespace) -> int:
     ctx = None
     if args.preview:
         check_writable(resolve_output(args.preview))  # before any scene is built
-        from envcap.gpu.context import create_context
-
         ctx = create_context()
     try:
         for name, _ in names:
@@ -51,8 +50,6 @@ def run(args: argparse.Namespace) -> int:
                 print(f"    street {st.name}: along {st.axis} [{st.start:g}, {st.end:g}] m, facade planes "
                       f"{'z' if st.axis == 'x' else 'x'} = {st.facade_min:g} / {st.facade_max:g} m, probe line {st.center_line:g}")
             if args.preview:
-                from envcap.scene.scene_preview import save_previews
-
                 out = save_previews(ctx, scene, Path(args.preview) / f"scenes_{Path(name).stem}.png")
                 print(f"    preview {out}")
     finally:
