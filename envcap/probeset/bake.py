@@ -38,6 +38,8 @@ from envcap.probeset.manifest import LobeTable, Manifest, Probe, SceneInfo, SkyI
 from envcap.probeset.placement import MAX_PROBES, place_probes, probe_count
 from envcap.probeset.planes import Planes, fit_planes
 from envcap.probeset.probe_set import ProbeSet
+from envcap.probeset.street_checks import (inside_geometry_warning, plane_fit_warnings,
+                                          street_setup_warnings)
 from envcap.scene.model import Scene
 
 
@@ -90,6 +92,8 @@ def bake_probe_set(
     placements = [place_probes(st, spacing=spacing, height=height, max_probes=max_probes) for st in scene.streets]
     positions = np.array([p.position for street in placements for p in street], dtype=np.float64)
     check_geometry(scene, positions)
+    for line in street_setup_warnings(scene):
+        print(f"envcap: warning: {line}", file=sys.stderr)
     if estimate.big:
         _log(f"{scene.name}: estimate: {estimate.describe()}", verbose)
     _log(f"{scene.name}: {len(positions)} probes on {len(scene.streets)} street(s), {resolution}^2 per face", verbose)
@@ -136,20 +140,22 @@ def bake_probe_set(
 
     streets = []
     layer = 0
-    inside = []
+    warnings = []
     for st, probes in zip(scene.streets, placements):
         entries = []
         for p in probes:
             fitted = fit_planes(p.position, captured.distance[layer], captured.rgba[layer, ..., 3], st.axis)
             inside_flag = probe_inside_geometry(captured.backfacing[layer])
             if inside_flag:
-                inside.append((st.name, p.index, p.position))
+                warnings.append(inside_geometry_warning(st.name, p.index, p.position, captured.backfacing[layer]))
             entries.append(Probe(layer, p.index, p.position, p.planes, fitted, bool(inside_flag)))
             layer += 1
+        fits = [(e.index, e.planes, e.fitted_planes) for e in entries if e.fitted_planes is not None]
+        warnings += plane_fit_warnings(st.name, st.facade_max - st.facade_min, fits)
         streets.append(Street(st.name, st.axis, float(st.start), float(st.end), float(st.center_line),
                               Planes(float(st.facade_min), float(st.facade_max), float(st.ground)), tuple(entries)))
-    for name, idx, pos in inside:
-        print(f"envcap: warning: probe {idx} of street '{name}' at {pos} stands inside geometry", file=sys.stderr)
+    for line in warnings:
+        print(f"envcap: warning: {line}", file=sys.stderr)
 
     sun = None if sky.sun is None else SunInfo.from_json(sky.sun.spec())
     manifest = Manifest(

@@ -14,14 +14,16 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from envcap.scene.clearing import GroundRects, clear_pieces, roadways
 from envcap.scene.estimate import check_geometry_budget
 from envcap.scene.geometry import MeshBuilder
-from envcap.scene.mesh_import import import_mesh
-from envcap.scene.model import Scene, SceneMesh
+from envcap.scene.mesh_import import import_meshes
+from envcap.scene.mesh_select import select_mesh_files
+from envcap.scene.model import Scene, SceneMesh, Street
 from envcap.scene.spec import (
     BuildingSpec,
     GroundSpec,
@@ -34,6 +36,9 @@ from envcap.scene.spec import (
     WindowsSpec,
     side_key,
 )
+
+BELOW_GROUND_SHARE = 0.25
+"""An imported mesh with more than this share of its height range below y = 0 gets a warning."""
 
 
 def build_scene(spec: SceneSpec) -> Scene:
@@ -56,7 +61,7 @@ def build_scene(spec: SceneSpec) -> Scene:
                 _warn_if_empty(spec.source, side_key(si, side_index), s, side)
 
     if spec.mesh is not None:
-        parts.append(_import(spec.mesh))
+        parts.append(_import(spec.mesh, [s.street for s in spec.streets], spec.source))
 
     if spec.ground is not None:
         _build_ground(builder, spec.ground, spec.streets, parts)
@@ -72,13 +77,31 @@ def build_scene(spec: SceneSpec) -> Scene:
     )
 
 
-def _import(m: MeshSpec) -> SceneMesh:
-    """The ``[mesh]`` geometry; a ``ValueError`` (bad file, coordinates past the limit) names the table."""
+def _import(m: MeshSpec, streets: list[Street], source: str) -> SceneMesh:
+    """The ``[mesh]`` geometry; a ``ValueError`` (bad file, pattern matching nothing, coordinates
+    past the limit) names the table.  Prints one note when parts were flipped, and a warning when
+    most of the mesh lies below the ground (a Z-up file read without ``up_axis = "z"``)."""
     try:
-        return import_mesh(m.path, up_axis=m.up_axis, rotation_deg=m.rotation_deg, offset=m.offset,
-                           scale=m.scale, albedo=m.albedo)
+        files = select_mesh_files(m.base_dir or Path.cwd(), file=m.path, files=m.files, globs=m.globs,
+                                  include=m.include, exclude=m.exclude)
+        mesh, report = import_meshes(files, up_axis=m.up_axis, rotation_deg=m.rotation_deg, offset=m.offset,
+                                     scale=m.scale, albedo=m.albedo, winding=m.winding, crop=m.crop,
+                                     streets=streets, where=str(m.path if m.path is not None and not m.files
+                                                                and not m.globs else "the selected files"))
     except ValueError as exc:
         raise ValueError(f"mesh: {exc}") from None
+    where = f"{source}: " if source else ""
+    if report.flipped:
+        names = ", ".join(report.flipped_files[:5]) + (f" and {len(report.flipped_files) - 5} more"
+                                                       if len(report.flipped_files) > 5 else "")
+        how = "as asked (winding = \"flip\")" if m.winding == "flip" else "wound inward"
+        print(f"envcap: note: {where}mesh: flipped {report.flipped} of {report.parts} meshes {how} (files {names})",
+              file=sys.stderr)
+    if report.below_ground > BELOW_GROUND_SHARE:
+        print(f"envcap: warning: {where}mesh: {100 * report.below_ground:.0f} % of the imported geometry's height "
+              f"lies below the ground (y = 0) after the import transform: a Z-up file needs up_axis = \"z\"",
+              file=sys.stderr)
+    return mesh
 
 
 def _warn_if_empty(source: str, where: str, s: StreetSpec, side: SideSpec) -> None:

@@ -14,6 +14,11 @@ Geometry is made flat-shaded: every triangle gets its own three vertices and its
 dropped.  Vertex or face colors, if present, are read as sRGB and become linear albedo;
 otherwise the default ``albedo`` is used.  Imported meshes have no emission.
 
+After the transform, :func:`import_meshes` (see :mod:`envcap.scene.mesh_parts`) splits the
+geometry into parts (each file's connected pieces), keeps the parts that meet a crop box (whole:
+terrain is not clipped per triangle yet) and flips the parts wound inward (``winding = "auto"``),
+or all of them (``"flip"``), or none (``"keep"``); the :class:`ImportReport` says what it did.
+
 Errors are one line naming the file: whatever the loader (trimesh) raises becomes a ``ValueError``
 ``cannot read mesh file PATH: ...``; transformed vertices must lie within
 :data:`~envcap.scene.limits.COORDINATE_LIMIT_M` of the origin on every axis.
@@ -21,6 +26,7 @@ Errors are one line naming the file: whatever the loader (trimesh) raises become
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -29,9 +35,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.scene.geometry import srgb_to_linear
 from envcap.scene.limits import COORDINATE_LIMIT_M
-from envcap.scene.model import SceneMesh
+from envcap.scene.mesh_parts import component_labels, inward_parts, parts_meeting_box
+from envcap.scene.mesh_select import mesh_files
+from envcap.scene.model import SceneMesh, Street
 
-MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off")
+WINDING_MODES = ("auto", "keep", "flip")
+"""``winding`` of :func:`import_meshes`: flip the parts found wound inward, none, or all."""
 
 
 def import_transform(
@@ -110,18 +119,19 @@ def _flat(m: Any, default_albedo: NDArray[np.float64]) -> tuple[NDArray[np.float
     return tri, alb
 
 
-def mesh_files(path: Path) -> list[Path]:
-    """The mesh files a ``[mesh] file`` names: the file itself, or a directory's ``*.ply`` sorted."""
-    if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.suffix.lower() == ".ply" and p.is_file())
-        if not files:
-            raise ValueError(f"mesh directory {path} contains no .ply files")
-        return files
-    if not path.is_file():
-        raise FileNotFoundError(f"mesh file {path} not found")
-    if path.suffix.lower() not in MESH_SUFFIXES:
-        raise ValueError(f"mesh file {path}: unsupported type '{path.suffix}' (use one of {', '.join(MESH_SUFFIXES)})")
-    return [path]
+@dataclass(frozen=True)
+class ImportReport:
+    """What :func:`import_meshes` did: ``parts`` found (files' connected pieces), ``cropped``
+    parts dropped by the crop box, ``flipped`` parts whose winding was reversed (``flipped_files``:
+    their file names, each once), and ``below_ground``: the share (0..1) of the kept geometry's
+    height range that lies below y = 0 (a Z-up file read as Y-up stands half under the ground).
+    ``parts`` counts the parts kept, ``cropped`` those the crop dropped."""
+
+    parts: int
+    cropped: int
+    flipped: int
+    flipped_files: tuple[str, ...]
+    below_ground: float
 
 
 def import_mesh(
@@ -132,38 +142,97 @@ def import_mesh(
     offset: Sequence[float] = (0.0, 0.0, 0.0),
     scale: float = 1.0,
     albedo: ArrayLike = (0.5, 0.5, 0.5),
+    winding: str = "auto",
 ) -> SceneMesh:
-    """Load a mesh file (or a directory of PLY files, concatenated) as a flat-shaded SceneMesh.
+    """Load a mesh file (or a directory of PLY files, concatenated) as a flat-shaded SceneMesh:
+    :func:`import_meshes` of :func:`envcap.scene.mesh_select.mesh_files` ``(path)``, without a crop."""
+    mesh, _ = import_meshes(mesh_files(Path(path)), up_axis=up_axis, rotation_deg=rotation_deg, offset=offset,
+                            scale=scale, albedo=albedo, winding=winding, where=str(path))
+    return mesh
+
+
+def import_meshes(
+    files: Sequence[Path],
+    *,
+    up_axis: str = "y",
+    rotation_deg: float = 0.0,
+    offset: Sequence[float] = (0.0, 0.0, 0.0),
+    scale: float = 1.0,
+    albedo: ArrayLike = (0.5, 0.5, 0.5),
+    winding: str = "auto",
+    crop: tuple[Sequence[float], Sequence[float]] | None = None,
+    streets: Sequence[Street] = (),
+    where: str = "mesh",
+) -> tuple[SceneMesh, ImportReport]:
+    """Load mesh ``files`` (concatenated, in order) as one flat-shaded SceneMesh, and what was done.
 
     See the module docstring for the transform order.  ``albedo`` (linear RGB in [0, 1]) is used
-    where the file has no vertex or face colors.  Raises ``FileNotFoundError`` / ``ValueError``
-    (one line naming the file; also for vertices past :data:`~envcap.scene.limits.COORDINATE_LIMIT_M`).
+    where a file has no vertex or face colors.  ``crop``: ``(min, max)`` world corners (m, after
+    the transform); the parts that meet it are kept whole.  ``winding``: one of
+    :data:`WINDING_MODES`; ``streets`` tell which way a facade sheet (a part enclosing no volume)
+    should face (:func:`envcap.scene.mesh_parts.inward_parts`).  Raises ``FileNotFoundError`` /
+    ``ValueError`` (one line naming the file or ``where``; also for vertices past
+    :data:`~envcap.scene.limits.COORDINATE_LIMIT_M`, or a crop that keeps nothing).
     """
     m4 = import_transform(up_axis, rotation_deg, scale, offset)
+    if winding not in WINDING_MODES:
+        raise ValueError(f"winding must be one of {list(WINDING_MODES)}, got {winding!r}")
     default_albedo = np.asarray(albedo, np.float64)
     if default_albedo.shape != (3,) or not np.all((default_albedo >= 0) & (default_albedo <= 1)):
         raise ValueError(f"albedo must be 3 values in [0, 1], got {albedo!r}")
     tris, albs = [], []
-    for f in mesh_files(Path(path)):
+    for f in files:
         t, a = _read(f, default_albedo)
         tris.append(t)
         albs.append(a)
+    file_of = np.repeat(np.arange(len(tris)), [t.shape[0] for t in tris])
     tri = np.concatenate(tris)
     alb = np.concatenate(albs)
     with np.errstate(over="ignore", invalid="ignore"):
         tri = tri @ m4[:3, :3].T + m4[:3, 3]
         reach = float(np.max(np.abs(tri)))
     if not reach <= COORDINATE_LIMIT_M:  # also NaN / inf (overflow)
-        raise ValueError(f"{path}: vertices reach {reach:.10g} m after the import transform (scale {scale:g}, "
+        raise ValueError(f"{where}: vertices reach {reach:.10g} m after the import transform (scale {scale:g}, "
                          f"offset {list(offset)}), beyond the coordinate limit of +-{COORDINATE_LIMIT_M:g} m; "
                          f"change scale or offset")
+    part = np.zeros(tri.shape[0], np.int64)
+    start, parts = 0, 0
+    for t in tris:
+        labels = component_labels(tri[start:start + t.shape[0]])
+        part[start:start + t.shape[0]] = labels + parts
+        parts += int(labels.max(initial=-1)) + 1
+        start += t.shape[0]
+    cropped = 0
+    if crop is not None:
+        keep = parts_meeting_box(tri, part, crop[0], crop[1])
+        if not np.any(keep):
+            raise ValueError(f"{where}: the crop box {list(crop[0])} .. {list(crop[1])} meets none of the {parts} parts "
+                             f"(the mesh spans {list(np.round(tri.min(axis=(0, 1)), 2))} .. "
+                             f"{list(np.round(tri.max(axis=(0, 1)), 2))} after the transform)")
+        tri, alb, file_of = tri[keep], alb[keep], file_of[keep]
+        part = np.unique(part[keep], return_inverse=True)[1].reshape(-1)
+        cropped, parts = parts - int(part.max()) - 1, int(part.max()) + 1
+    flip_part = np.zeros(parts, bool)
+    if winding == "flip":
+        flip_part[:] = True
+    elif winding == "auto":
+        flip_part = inward_parts(tri, part, streets)
+    flip = flip_part[part]
+    if np.any(flip):
+        tri[flip] = tri[flip][:, [0, 2, 1]]
+        alb[flip] = alb[flip][:, [0, 2, 1]]
+    flipped_files = tuple(dict.fromkeys(Path(files[i]).name for i in file_of[flip]))
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(n, axis=1)
     scale_ref = max(float(np.abs(tri).max()), 1.0)
     keep = length > 1e-12 * scale_ref * scale_ref
     if not np.any(keep):
-        raise ValueError(f"mesh {path} has only degenerate (zero-area) triangles")
+        raise ValueError(f"mesh {where} has only degenerate (zero-area) triangles")
     tri, alb, n = tri[keep], alb[keep], n[keep] / length[keep, None]
     t = tri.shape[0]
-    return SceneMesh.from_world(tri.reshape(-1, 3), np.repeat(n, 3, axis=0), alb.reshape(-1, 3),
+    y_lo, y_hi = float(tri[..., 1].min()), float(tri[..., 1].max())
+    below = 0.0 if y_lo >= 0 else (min(0.0, y_hi) - y_lo) / max(y_hi - y_lo, 1e-300)
+    report = ImportReport(parts, cropped, int(np.unique(part[flip]).size), flipped_files, below)
+    mesh = SceneMesh.from_world(tri.reshape(-1, 3), np.repeat(n, 3, axis=0), alb.reshape(-1, 3),
                                 np.zeros((3 * t, 3)), np.arange(3 * t, dtype=np.uint32).reshape(t, 3))
+    return mesh, report

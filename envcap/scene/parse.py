@@ -40,6 +40,7 @@ from envcap.scene.limits import (
     SIZE_LIMIT_M,
     SPAN_LIMIT_M,
 )
+from envcap.scene.mesh_import import WINDING_MODES
 from envcap.scene.table import Table
 from envcap.sky.registry import SkySpec, parse_sky_spec
 
@@ -105,20 +106,51 @@ def _parse_sky(v: Any, base_dir: Path | None) -> SkySpec:
 
 
 def _parse_mesh(t: Table, base_dir: Path | None) -> MeshSpec:
-    """A scene's ``[mesh]`` table (keys: file, up_axis, rotation_deg, offset, scale, albedo)."""
-    f = Path(t.string("file"))
-    if not f.is_absolute() and base_dir is not None:
-        f = base_dir / f
+    """A scene's ``[mesh]`` table (keys: file, files, glob, include, exclude, up_axis, rotation_deg,
+    offset, scale, albedo, winding, crop); at least one of file, files, glob."""
+    base = base_dir if base_dir is not None else Path.cwd()
+    file = t.raw("file", None)
+    if file is not None:
+        file = base / Path(t.string("file"))
+    files = tuple(base / Path(f) for f in _strings(t, "files"))
+    globs = _strings(t, "glob")
+    if file is None and not files and not globs:
+        raise ValueError(f"{t.where}: give the mesh files with 'file', 'files' or 'glob'")
+    crop_table = t.sub("crop")
+    crop = None
+    if crop_table is not None:
+        lo = crop_table.vector("min", 3, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
+        hi = crop_table.vector("max", 3, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
+        crop_table.close()
+        if not all(a < b for a, b in zip(lo, hi)):
+            raise ValueError(f"{t.where}.crop: min {list(lo)} must be below max {list(hi)} on every axis")
+        crop = (lo, hi)
     spec = MeshSpec(
-        path=f,
+        path=file,
         up_axis=t.string("up_axis", "y", choices=("y", "z")),
         rotation_deg=t.number("rotation_deg", 0.0, min=-ANGLE_LIMIT_DEG, max=ANGLE_LIMIT_DEG),
         offset=t.vector("offset", 3, (0.0, 0.0, 0.0), min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M),
         scale=t.number("scale", 1.0, min=MESH_SCALE_RANGE[0], max=MESH_SCALE_RANGE[1]),
         albedo=t.vector("albedo", 3, (0.5, 0.5, 0.5), min=0.0, max=1.0, gray=True),
+        files=files,
+        globs=globs,
+        include=_strings(t, "include"),
+        exclude=_strings(t, "exclude"),
+        base_dir=base,
+        winding=t.string("winding", "auto", choices=WINDING_MODES),
+        crop=crop,
     )
     t.close()
     return spec
+
+
+def _strings(t: Table, key: str) -> tuple[str, ...]:
+    """A string or a list of non-empty strings (default: none)."""
+    v = t.raw(key, [])
+    v = [v] if isinstance(v, str) else v
+    if not isinstance(v, list) or not all(isinstance(x, str) and x for x in v):
+        raise ValueError(f"{t.where}.{key}: expected a string or a list of strings, got {v!r}")
+    return tuple(v)
 
 
 def _parse_windows(t: Table) -> WindowsSpec:

@@ -135,15 +135,25 @@ class GroundSpec:
 
 @dataclass(frozen=True)
 class MeshSpec:
-    """An imported mesh (``[mesh]``): the file (resolved against the scene's directory) and the
-    import transform of :func:`envcap.scene.mesh_import.import_mesh`."""
+    """An imported mesh (``[mesh]``): which files (``path`` = the ``file`` key and ``files``,
+    resolved against the scene's directory ``base_dir``; ``globs``, ``include``, ``exclude``
+    patterns, see :mod:`envcap.scene.mesh_select`), the import transform, ``winding``
+    (``"auto"``, ``"keep"``, ``"flip"``) and ``crop`` (``(min, max)`` world corners, m) of
+    :func:`envcap.scene.mesh_import.import_meshes`.  Files are looked up when the scene is built."""
 
-    path: Path
+    path: Path | None
     up_axis: str
     rotation_deg: float
     offset: tuple[float, float, float]
     scale: float
     albedo: RGB
+    files: tuple[Path, ...] = ()
+    globs: tuple[str, ...] = ()
+    include: tuple[str, ...] = ()
+    exclude: tuple[str, ...] = ()
+    base_dir: Path | None = None
+    winding: str = "auto"
+    crop: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
 
 
 @dataclass(frozen=True)

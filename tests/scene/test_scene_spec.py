@@ -67,6 +67,6 @@ def test_layout_errors_are_parse_errors(tmp_path):
     mesh_doc = {**DOC, "mesh": {"file": "gone.ply", "up_axis": "z"}}
     spec = parse_scene(mesh_doc, base_dir=tmp_path)  # the mesh file is read by the build, not the parse
     assert spec.mesh == MeshSpec(path=tmp_path / "gone.ply", up_axis="z", rotation_deg=0.0, offset=(0.0, 0.0, 0.0),
-                                 scale=1.0, albedo=(0.5, 0.5, 0.5))
+                                 scale=1.0, albedo=(0.5, 0.5, 0.5), base_dir=tmp_path)
     with pytest.raises(FileNotFoundError, match="gone.ply"):
         build_scene(spec)
