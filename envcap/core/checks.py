@@ -28,6 +28,16 @@ def finite_float(value: Any, name: str) -> float:
     return v
 
 
+def float_in_range(value: Any, name: str, lo: float, hi: float, unit: str = "") -> float:
+    """``value`` (as :func:`finite_float` takes it) as a float in the closed range [``lo``, ``hi``];
+    the error names the range and ``unit`` (e.g. ``"degrees"``): ``"NAME must be in [lo, hi] unit,
+    got x"``."""
+    v = finite_float(value, name)
+    if not lo <= v <= hi:
+        raise ValueError(f"{name} must be in [{lo:g}, {hi:g}]{' ' + unit if unit else ''}, got {v:g}")
+    return v
+
+
 def positive_int(value: Any, name: str) -> int:
     """``value`` (a Python or numpy integer, not a bool) >= 1, as an int: a size or a count."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap.core import budget
+from envcap.core.color import srgb_to_linear
 
 __all__ = ["BAND_PIXELS", "read_rgb_radiance", "one_line"]
 
@@ -43,12 +44,6 @@ def one_line(message: str, limit: int = 300) -> str:
             seen.append(ln)
     text = "; ".join(seen)
     return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _srgb_decode(c: NDArray[np.float32]) -> NDArray[np.float64]:
-    # IEC 61966-2-1 decoding of sRGB-encoded values in [0, 1] to linear, in float64.
-    c = c.astype(np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 def _is_float_format(fmt: object) -> bool:
@@ -112,7 +107,7 @@ def read_rgb_radiance(
             band = img[y0:y1]
             band[...] = np.asarray(data, dtype=np.float32).reshape(y1 - y0, wd, 3)
             if ldr:
-                band[...] = _srgb_decode(band)
+                band[...] = srgb_to_linear(band)
             if band.size and np.min(band) >= 0 and np.max(band) < np.inf:  # NaN fails the first test
                 continue
             bad_ch = ~np.isfinite(band) | (band < 0)

@@ -135,8 +135,3 @@ def subtract_interval(pieces: list[tuple[float, float]], lo: float, hi: float) -
             out.append((hi, b))
     return out
 
-
-def srgb_to_linear(c: ArrayLike) -> NDArray[np.float64]:
-    """sRGB-encoded values in [0, 1] to linear (IEC 61966-2-1 piecewise curve)."""
-    c = np.clip(np.asarray(c, np.float64), 0.0, 1.0)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)

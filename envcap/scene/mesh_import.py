@@ -33,7 +33,7 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from envcap.scene.geometry import srgb_to_linear
+from envcap.core.color import srgb_to_linear
 from envcap.scene.limits import COORDINATE_LIMIT_M
 from envcap.scene.mesh_parts import component_labels, inward_parts, parts_meeting_box
 from envcap.scene.mesh_select import mesh_files
@@ -111,7 +111,7 @@ def _flat(m: Any, default_albedo: NDArray[np.float64]) -> tuple[NDArray[np.float
     alb = np.broadcast_to(default_albedo, tri.shape).copy()
     kind = getattr(m.visual, "kind", None)
     if kind == "vertex":
-        vc = np.asarray(m.visual.vertex_colors)[:, :3] / 255.0
+        vc = np.asarray(m.visual.vertex_colors)[:, :3] / 255.0  # uint8 codes: in [0, 1]
         alb = srgb_to_linear(vc)[f]
     elif kind == "face":
         fc = np.asarray(m.visual.face_colors)[:, :3] / 255.0

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from envcap.core.checks import finite_float
+from envcap.core.checks import float_in_range
 
 RGB_LIMIT = 1.0e12
 """Largest radiance (cd/m^2-scaled) or illuminance (lux) a scene key may give: ``[sky] radiance``,
@@ -50,24 +50,15 @@ def rgb_triple(value: Any, name: str, limit: float | None = None) -> NDArray[np.
 
 def check_elevation(e: Any, name: str = "sun elevation") -> float:
     """A sun elevation in [0, 90] degrees."""
-    e = finite_float(e, name)
-    if not 0.0 <= e <= 90.0:
-        raise ValueError(f"{name} must be in [0, 90] degrees, got {e:g}")
-    return e
+    return float_in_range(e, name, 0.0, 90.0, "degrees")
 
 
 def check_azimuth(value: Any, name: str) -> float:
     """An azimuth in degrees within [-:data:`AZIMUTH_LIMIT_DEG`, +:data:`AZIMUTH_LIMIT_DEG`]."""
-    a = finite_float(value, name)
-    if not abs(a) <= AZIMUTH_LIMIT_DEG:
-        raise ValueError(f"{name} must be in [-{AZIMUTH_LIMIT_DEG:g}, {AZIMUTH_LIMIT_DEG:g}] degrees, got {a:g}")
-    return a
+    return float_in_range(value, name, -AZIMUTH_LIMIT_DEG, AZIMUTH_LIMIT_DEG, "degrees")
 
 
 def check_scale(value: Any, name: str = "scale") -> float:
     """A radiance scale factor in [0, :data:`SCALE_LIMIT`]."""
-    s = finite_float(value, name)
-    if not 0 <= s <= SCALE_LIMIT:
-        raise ValueError(f"{name} must be in [0, {SCALE_LIMIT:g}], got {s:g}")
-    return s
+    return float_in_range(value, name, 0.0, SCALE_LIMIT)
 

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap.sky.base import Sky, SkyModel
-from envcap.core.checks import finite_float, unit_directions
+from envcap.core.checks import finite_float, float_in_range, unit_directions
 from envcap.sky.checks import check_azimuth, check_elevation, check_scale
 from envcap.sky.sun import SOLAR_ILLUMINANCE_EXTRATERRESTRIAL, SUN_ANGULAR_RADIUS, Sun, direction_from_angles
 
@@ -55,18 +55,12 @@ _ZENITH_y = np.array([[0.00275, -0.00610, 0.00317, 0.0], [-0.04214, 0.08970, -0.
 
 def check_turbidity(t: Any, name: str = "turbidity") -> float:
     """A turbidity inside :data:`TURBIDITY_RANGE`."""
-    t = finite_float(t, name)
-    if not TURBIDITY_RANGE[0] <= t <= TURBIDITY_RANGE[1]:
-        raise ValueError(f"{name} must be in [{TURBIDITY_RANGE[0]:g}, {TURBIDITY_RANGE[1]:g}], got {t:g}")
-    return t
+    return float_in_range(t, name, *TURBIDITY_RANGE)
 
 
 def check_ground_albedo(value: Any, name: str = "ground albedo") -> float:
     """A ground albedo in [0, 1]."""
-    a = finite_float(value, name)
-    if not 0.0 <= a <= 1.0:
-        raise ValueError(f"{name} must be in [0, 1], got {a:g}")
-    return a
+    return float_in_range(value, name, 0.0, 1.0)
 
 
 def preetham_perez_coefficients(turbidity: float) -> NDArray[np.float64]:

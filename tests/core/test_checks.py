@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from envcap.core.checks import check_table_keys, finite_directions, finite_float, positive_int, unit_directions
+from envcap.core.checks import (check_table_keys, finite_directions, finite_float, float_in_range, positive_int,
+                                unit_directions)
 
 
 def test_finite_float():
@@ -14,6 +15,18 @@ def test_finite_float():
                        (float("nan"), "x must be finite"), (-math.inf, "finite")):
         with pytest.raises(ValueError, match=words):
             finite_float(bad, "x")
+
+
+def test_float_in_range_is_closed_and_names_range_and_unit():
+    assert float_in_range(0, "e", 0.0, 90.0) == 0.0 and float_in_range(np.float32(90), "e", 0.0, 90.0) == 90.0
+    assert float_in_range(-360, "az", -360.0, 360.0, "degrees") == -360.0
+    with pytest.raises(ValueError, match=r"^az must be in \[-360, 360\] degrees, got 360\.5$"):
+        float_in_range(360.5, "az", -360.0, 360.0, "degrees")
+    with pytest.raises(ValueError, match=r"^t must be in \[2, 10\], got 1\.99$"):
+        float_in_range(1.99, "t", 2.0, 10.0)
+    for bad in (math.nan, math.inf, True, "5"):
+        with pytest.raises(ValueError, match="^t must be"):
+            float_in_range(bad, "t", 2.0, 10.0)
 
 
 def test_positive_int():

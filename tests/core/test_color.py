@@ -1,4 +1,5 @@
-"""envcap.core.color: the one Rec.709 luminance, checked against the primaries it comes from."""
+"""envcap.core.color: the one Rec.709 luminance, checked against the primaries it comes from, and
+the one sRGB decoder, checked against the standard's encoding curve and published values."""
 
 import pathlib
 import re
@@ -6,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from envcap.core.color import REC709_LUMINANCE, luminance
+from envcap.core.color import REC709_LUMINANCE, luminance, srgb_to_linear
 from envcap.sky.preetham import XYZ_TO_RGB
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[2] / "envcap"
@@ -48,3 +49,22 @@ def test_no_other_copy_of_the_weights_in_the_package():
             for i, line in enumerate(p.read_text().splitlines(), 1)
             if re.search(r"0\.2126\d*\s*,|0\.7152\s*,|0\.71515", line) and not line.lstrip().startswith(("#", "``", "*"))]
     assert not hits, f"luminance weights defined outside envcap/core/color.py: {hits}"
+
+
+def test_srgb_decoding_inverts_the_standards_encoding_and_matches_published_values():
+    # IEC 61966-2-1 encoding (linear -> sRGB), written independently of the decoder.
+    lin = np.linspace(0.0, 1.0, 10001)
+    enc = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1 / 2.4) - 0.055)
+    np.testing.assert_allclose(srgb_to_linear(enc), lin, rtol=1e-12, atol=1e-15)
+    # 8-bit codes from the published table: 0 -> 0, 10 -> 0.00303527, 128 -> 0.2158605, 255 -> 1.
+    got = srgb_to_linear(np.array([0, 10, 128, 255], np.uint8) / 255.0)
+    np.testing.assert_allclose(got, [0.0, 0.00303527, 0.2158605, 1.0], rtol=2e-6, atol=1e-12)
+    assert srgb_to_linear(np.float32(0.5)).dtype == np.float64
+    assert srgb_to_linear([[-0.01]])[0, 0] < 0  # not clipped: the caller checks the range
+
+
+
+def test_no_other_srgb_decoder_in_the_package():
+    hits = [f"{p.relative_to(PACKAGE)}:{i}" for p in PACKAGE.rglob("*.py") if p.name != "color.py"
+            for i, line in enumerate(p.read_text().splitlines(), 1) if re.search(r"0\.04045|/\s*1\.055", line)]
+    assert not hits, f"an sRGB decoder outside envcap/core/color.py: {hits}"

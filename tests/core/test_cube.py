@@ -1,4 +1,4 @@
-"""envcap.cube against hand-derived cases and float64 references."""
+"""envcap.core.cube against hand-derived cases and float64 references."""
 
 import numpy as np
 import pytest

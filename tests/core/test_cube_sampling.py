@@ -1,4 +1,4 @@
-"""envcap.cube_sampling (numpy textureLod twin) against the llvmpipe sampler itself."""
+"""envcap.core.cube_sampling (numpy textureLod twin) against the llvmpipe sampler itself."""
 
 import numpy as np
 import pytest
