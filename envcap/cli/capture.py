@@ -9,6 +9,7 @@ from pathlib import Path
 
 from envcap.cli.output_options import add_force_argument, scene_input_files
 from envcap.outputs import claim_output_dir
+from envcap.prefilter import QUALITIES
 from envcap.probeset.bake import bake_probe_set
 from envcap.probeset.store import write_probe_set
 from envcap.scene import load_scene
@@ -19,7 +20,7 @@ def add_bake_arguments(p: argparse.ArgumentParser, resolution: int) -> None:
     p.add_argument("--resolution", type=int, default=resolution, metavar="N", help=f"face size in texels (default {resolution})")
     p.add_argument("--spacing", type=float, default=5.0, metavar="M", help="probe spacing along the street in meters (default 5)")
     p.add_argument("--height", type=float, default=2.0, metavar="M", help="probe height above the ground in meters (default 2)")
-    p.add_argument("--quality", default="default", choices=["fast", "default", "high"], help="cosine-lobe filter quality")
+    p.add_argument("--quality", default="default", choices=list(QUALITIES), help="cosine-lobe filter quality")
     p.add_argument("--sun-in-sky", action="store_true",
                    help="splat the sun into sky.ktx2 (float32) instead of keeping it only as an analytic light")
     p.add_argument("--no-exr", action="store_true", help="skip the per-probe OpenEXR files")

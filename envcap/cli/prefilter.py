@@ -30,7 +30,7 @@ from envcap.core.lobes import lobe_ladder
 from envcap.formats.exr_cube import ExrDataError, read_exr_cube, write_exr_cube
 from envcap.formats.ktx2 import write_ktx2
 from envcap.outputs import atomic_output_dir, claim_output_dir
-from envcap.prefilter import omega_box_pyramid, prefilter_chain
+from envcap.prefilter import QUALITIES, omega_box_pyramid, prefilter_chain
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -39,7 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="output directory (replaced atomically)")
     p.add_argument("--size", type=int, default=None,
                    help="face size of level 0 (default: the cube's own size; for lat-long, a power of two near width/4)")
-    p.add_argument("--quality", default="default", choices=["fast", "default", "high"],
+    p.add_argument("--quality", default="default", choices=list(QUALITIES),
                    help="prefilter quality (see docs/prefilter.md); default: default")
     add_force_argument(p)
     p.set_defaults(func=run)

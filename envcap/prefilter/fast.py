@@ -4,7 +4,8 @@ Computes the chain ``m_k`` defined in :mod:`envcap.prefilter.exact` (level 0 = t
 ``k`` = the normalized ``cos^w_k`` average), approximated as follows: the source is the coarsest
 solid-angle box reduction whose texels are small against the lobe, each coarse texel placed at its
 luminance-weighted centroid direction; weights below a fraction of the peak are skipped
-(:func:`footprint_rects`); a few very bright texels (a sun) are summed exactly at full resolution.
+(:mod:`envcap.prefilter.footprint`); a few very bright texels (a sun, :mod:`envcap.prefilter.hot`) are summed
+exactly at full resolution.
 :data:`QUALITY` sets the trade-off.  Derivation and measured accuracy: ``docs/prefilter.md``.
 """
 
@@ -18,14 +19,15 @@ from numpy.typing import ArrayLike, NDArray
 from tqdm import tqdm
 
 from envcap.core import cube as cube_geometry
-from envcap.core.color import luminance
 from envcap.core.lobes import LobeLadder, lobe_ladder
 from envcap.core.resources import shader_source
 from envcap.gpu.context import create_context
+from envcap.prefilter.composed import prefilter_many_composed
 from envcap.prefilter.exact import check_cosine_power, check_finite_cube
+from envcap.prefilter.footprint import LOOP_BUDGET, footprint_theta, loop_estimate
+from envcap.prefilter.hot import hot_texels, luminance_weight
 
-__all__ = ["QUALITY", "HOT_FACTOR", "MAX_HOT", "Quality", "footprint_rects", "prefilter_chain", "prefilter_many",
-           "prefilter_level"]
+__all__ = ["QUALITIES", "QUALITY", "Quality", "prefilter_chain", "prefilter_many", "prefilter_level"]
 
 # quality -> (q: source texels per lobe RMS angle, eps: footprint truncation (weights < eps * peak /
 # dynamic range dropped), smallest source face size used).  Measured accuracy: docs/prefilter.md.
@@ -34,84 +36,11 @@ QUALITY: dict[str, tuple[float, float, int]] = {
     "default": (4.0, 1e-4, 32),
     "high": (8.0, 1e-9, 64),
 }
-HOT_FACTOR = 1e3
-"""Level-0 texels brighter than this x the median positive luminance are summed exactly (the sun)."""
-MAX_HOT = 256
-"""At most this many hot texels per cube (the brightest); the rest stay in the source levels."""
-_LOOP_BUDGET = 30000  # llvmpipe ends a shader's loops after 65535 iterations in all
-
-# Face frames of envcap.core.cube: direction = N + u A + v B.
-_FN = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], np.float64)
-_FA = np.array([[0, 0, -1], [0, 0, 1], [1, 0, 0], [1, 0, 0], [1, 0, 0], [-1, 0, 0]], np.float64)
-_FB = np.array([[0, -1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1], [0, -1, 0], [0, -1, 0]], np.float64)
-
-
-def footprint_rects(dirs: ArrayLike, theta: float, n_src: int) -> NDArray[np.int32]:
-    """Texel rectangles per source face that hold every texel center within ``theta`` of each direction.
-
-    ``dirs`` is ``(M, 3)`` unit directions, ``theta`` the cap half-angle (radians), ``n_src`` the
-    source face size.  Returns ``(M, 6, 4)`` int32 ``(col0, col1, row0, row1)`` with exclusive
-    ends (empty when ``col0 >= col1``).  float64 bounding box of the cap's projection on each face
-    plane (an ellipse when the cap lies in front of the plane), widened by one texel; caps that
-    reach behind a face plane get the whole face (only wide lobes, where sources are small).
-    """
-    d = np.asarray(dirs, dtype=np.float64).reshape(-1, 3)
-    m = d.shape[0]
-    n = int(n_src)
-    rects = np.zeros((m, 6, 4), dtype=np.int32)
-    full = np.array([0, n, 0, n], dtype=np.int32)
-    theta = float(min(max(theta, 0.0), math.pi)) * 1.0001 + 1e-9
-    if theta >= 1.2:
-        rects[:] = full
-        return rects
-    c, s = math.cos(theta), math.sin(theta)
-    for f in range(6):
-        dn, da, db = d @ _FN[f], d @ _FA[f], d @ _FB[f]
-        ell = dn > s + 1e-9
-        rest = ~ell & (dn > -s) & (2.0 * theta > math.asin(1.0 / math.sqrt(3.0)))
-        rects[rest, f] = full
-        if not ell.any():
-            continue
-        da_, db_, dn_ = da[ell], db[ell], dn[ell]
-        A, B, C = da_**2 - c * c, 2 * da_ * db_, db_**2 - c * c
-        D, E, F = 2 * da_ * dn_, 2 * db_ * dn_, dn_**2 - c * c
-
-        def span(qa, qb, qc, center):
-            disc = np.maximum(qb * qb - 4 * qa * qc, 0.0)
-            r1 = (-qb - np.sqrt(disc)) / (2 * qa)
-            r2 = (-qb + np.sqrt(disc)) / (2 * qa)
-            lo, hi = np.minimum(r1, r2), np.maximum(r1, r2)
-            return np.minimum(lo, center), np.maximum(hi, center)
-
-        a_lo, a_hi = span(4 * A * C - B * B, 4 * C * D - 2 * B * E, 4 * C * F - E * E, da_ / dn_)
-        b_lo, b_hi = span(4 * A * C - B * B, 4 * A * E - 2 * B * D, 4 * A * F - D * D, db_ / dn_)
-
-        def idx(lo, hi):
-            i0 = np.ceil((np.clip(lo, -1, 1) + 1) * 0.5 * n - 0.5) - 1
-            i1 = np.floor((np.clip(hi, -1, 1) + 1) * 0.5 * n - 0.5) + 2
-            return np.clip(i0, 0, n).astype(np.int32), np.clip(i1, 0, n).astype(np.int32)
-
-        c0, c1 = idx(a_lo, a_hi)
-        r0, r1 = idx(b_lo, b_hi)
-        rects[ell, f] = np.stack([c0, c1, r0, r1], axis=1)
-    return rects
-
-
-def _luminance_weight(a: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Non-negative luminance weight of each texel of ``(..., C)``: Rec.709 Y of the first three
-    channels when ``C >= 3``, else the sum of the positive channels."""
-    if a.shape[-1] >= 3:
-        y = luminance(a)
-    else:
-        y = np.maximum(a, 0.0).sum(axis=-1)
-    return np.maximum(y, 0.0)
-
-
 class _Pyramid:
     """Source levels of one batch of cubes ``(P, 6, N, N, C)`` for the GL filter (float64, CPU).
 
-    ``hot``: the level-0 texels brighter than ``HOT_FACTOR`` x the median positive luminance of
-    their cube (at most ``MAX_HOT`` per cube, the brightest), kept as exact point samples and
+    ``hot``: the level-0 texels brighter than :data:`~envcap.prefilter.hot.HOT_FACTOR` x the median positive luminance of
+    their cube (at most :data:`~envcap.prefilter.hot.MAX_HOT` per cube, the brightest), kept as exact point samples and
     removed from the levels.  Level ``j``: ``s[j]`` ``(P, 6, n, n, C)`` sums of ``Omega * L``,
     ``om[j]`` ``(6, n, n)`` solid angles, ``dirs[j]`` ``(P, 6, n, n, 3)`` unit luminance-weighted
     centroid directions (texel centers at level 0).  ``dyn``: max / median luminance of what is
@@ -121,21 +50,17 @@ class _Pyramid:
     def __init__(self, a: NDArray[np.float64], levels: int) -> None:
         p, _, n, _, c = a.shape
         om0 = cube_geometry.texel_solid_angles(n)
-        y = _luminance_weight(a)
+        y = luminance_weight(a)
         self.hot_idx: list[NDArray[np.int64]] = []
         dyn = 1.0
         keep = np.ones(y.shape, bool)
         for i in range(p):
             yi = y[i].reshape(-1)
-            pos = yi[yi > 0]
-            med = float(np.median(pos)) if pos.size else 0.0
-            cand = np.flatnonzero(yi > HOT_FACTOR * med) if pos.size else np.zeros(0, np.int64)
-            if cand.size > MAX_HOT:
-                cand = cand[np.argsort(yi[cand])[-MAX_HOT:]]
+            cand, med = hot_texels(yi)
             self.hot_idx.append(cand)
             keep[i].reshape(-1)[cand] = False
             rest = yi[keep[i].reshape(-1)]
-            if pos.size and rest.size and rest.max() > 0:
+            if med > 0 and rest.size and rest.max() > 0:
                 dyn = max(dyn, float(rest.max() / med))
         self.dyn = dyn
         d0 = cube_geometry.texel_directions(n)
@@ -163,32 +88,19 @@ class _Pyramid:
         return [x.shape[2] for x in self.s]
 
 
-def _footprint_theta(w: float, eps: float) -> float:
-    """Half-angle (radians) of the cap where ``cos^w >= eps`` (pi/2 for ``w = 0``)."""
-    return math.pi / 2 if w == 0 else math.acos(min(1.0, eps ** (1.0 / w)))
-
-
 def _source_level(w: float, theta: float, sizes: list[int], q: float, min_src: int) -> int:
     """The coarsest source level with texels at most ``1/q`` of the lobe's RMS angle
     (face-center texel ``2/N``), no coarser than ``min_src`` texels per face (or level 0), and
-    whose footprint stays under :data:`_LOOP_BUDGET` loop iterations (llvmpipe's loop limit)."""
+    whose footprint stays under :data:`LOOP_BUDGET` loop iterations (llvmpipe's loop limit)."""
     sigma = 1.0 / math.sqrt(w + 2.0)
     best = 0
     for j, nj in enumerate(sizes):
         if j and (nj < min_src or sigma < q * 2.0 / nj):
             break
         best = j
-    while best + 1 < len(sizes) and _loop_estimate(theta, sizes[best]) > _LOOP_BUDGET:
+    while best + 1 < len(sizes) and loop_estimate(theta, sizes[best]) > LOOP_BUDGET:
         best += 1
     return best
-
-
-def _loop_estimate(theta: float, n: int) -> float:
-    """Upper estimate of the loop iterations of one invocation: the rows visited plus the texels
-    in the cap (texels are up to 3^1.5 ~ 5.2x denser per steradian at face corners)."""
-    cap = 2.0 * math.pi * (1.0 - math.cos(min(theta, math.pi)))
-    texels = min(cap * 5.2 * (n / 2.0) ** 2, 6.0 * n * n)
-    return texels + 6.0 * n
 
 
 class _GLFilter:
@@ -247,7 +159,10 @@ class _GLFilter:
         self.prog.release()
 
 
-Quality = Literal["fast", "default", "high"]
+Quality = Literal["fast", "default", "high", "composed"]
+QUALITIES: tuple[str, ...] = (*QUALITY, "composed")
+"""Every ``quality`` the chain filters accept: the coarse-source filter's settings (:data:`QUALITY`)
+and ``"composed"`` (:mod:`envcap.prefilter.composed`)."""
 
 
 def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: Quality = "default",
@@ -258,6 +173,8 @@ def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: 
     Same result as :func:`prefilter_chain` on each cube (one GL dispatch per level and channel
     block for a batch of probes whose source buffers fit ``batch_bytes``), the form a probe-set
     bake wants: level ``k`` of all probes is one array, ready for a cube-map array.
+    ``quality="composed"`` filters each level from an earlier one with the difference lobe
+    (:func:`envcap.prefilter.composed.prefilter_many_composed`).
     """
     a = np.asarray(cubes)
     if a.ndim != 5:
@@ -273,8 +190,17 @@ def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: 
         ladder = lobe_ladder(n)
     if ladder.sizes[0] != n:
         raise ValueError(f"ladder is for {ladder.sizes[0]}-texel faces, cube has {n}")
-    if quality not in QUALITY:
-        raise ValueError(f"quality must be one of {sorted(QUALITY)}, got {quality!r}")
+    if quality not in QUALITIES:
+        raise ValueError(f"quality must be one of {sorted(QUALITIES)}, got {quality!r}")
+    if quality == "composed":
+        own = ctx is None
+        if own:
+            ctx = create_context()
+        try:
+            return prefilter_many_composed(a, ladder, ctx, progress, batch_bytes)
+        finally:
+            if own:
+                ctx.release()
     q, eps0, min_src = QUALITY[quality]
     chain = [np.empty((p_all, 6, s, s, nch), np.float32) for s in ladder.sizes]
     chain[0][:] = a
@@ -294,7 +220,7 @@ def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: 
             eps = eps0 / max(pyr.dyn, 1.0)
             for k in range(1, ladder.levels):
                 w = float(ladder.powers[k])
-                theta = _footprint_theta(w, eps)
+                theta = footprint_theta(w, eps)
                 j = _source_level(w, theta, pyr.sizes, q, min_src)
                 for c0 in range(0, nch, 4):
                     cc = min(4, nch - c0)
@@ -318,6 +244,7 @@ def prefilter_level(cube: ArrayLike, w: float, out_size: int, quality: Quality =
     (``M = out_size``, any ``w >= 0``), by the same GL filter as :func:`prefilter_chain`.
 
     For chains built on other ladders (e.g. the cmft comparison in ``envcap bench zw``).
+    ``quality``: one of :data:`QUALITY` (``"composed"`` needs the levels before: chains only).
     """
     a = check_finite_cube(cube)
     w = check_cosine_power(w)
@@ -335,7 +262,7 @@ def prefilter_level(cube: ArrayLike, w: float, out_size: int, quality: Quality =
         n, nch = a.shape[1], a.shape[3]
         pyr = _Pyramid(a[None], n.bit_length())
         eps = eps0 / max(pyr.dyn, 1.0)
-        theta = _footprint_theta(w, eps)
+        theta = footprint_theta(w, eps)
         j = _source_level(w, theta, pyr.sizes, q, min_src)
         out = np.empty((6, m, m, nch), np.float32)
         for c0 in range(0, nch, 4):
@@ -362,7 +289,7 @@ def prefilter_chain(cube: ArrayLike, ladder: LobeLadder | None = None, quality: 
     its luminance-weighted centroid direction, over the footprint where
     ``cos^w >= eps / D * peak`` (``D``: dynamic range left after the hot texels; ``quality``:
     ``(q, eps, min source size)`` in :data:`QUALITY`).  The few texels brighter than
-    :data:`HOT_FACTOR` x the median (a sun) are summed exactly at full resolution.
+    :data:`~envcap.prefilter.hot.HOT_FACTOR` x the median (a sun) are summed exactly at full resolution.
     ``ctx``: a moderngl context (one is created and released when ``None``).  ``progress``:
     tqdm bar (``None``: only on a TTY).  Accuracy and speed: ``docs/prefilter.md``.
     """

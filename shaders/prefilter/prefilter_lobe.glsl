@@ -1,6 +1,6 @@
 #version 430
 // Normalized cosine-lobe filter of one cube level for P probes at once
-// (envcap.prefilter.filters.prefilter_many; derivation in docs/prefilter.md).
+// (envcap.prefilter.fast.prefilter_many; derivation in docs/prefilter.md).
 //
 // One invocation per output texel (probe p, face, row, col); its direction d is computed here
 // from the GL texel center.  Over the source texels u of probe p inside the lobe's footprint:
