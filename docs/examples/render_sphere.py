@@ -55,7 +55,10 @@ def main() -> int:
     pt.use(3)
     st.use(4)
     # sphere 4.5 m off the probe line, near a facade, between probes: where parallax matters
-    uni = {**street.uniforms(powers).values(), "eye": (10.0, 2.2, -3.0), "center": (15.0, 1.3, 3.8), "radius": 1.3}
+    # positions go to GLSL in the street-local frame of the uniforms (here origin = (0, 0, 0))
+    su = street.uniforms(powers)
+    uni = {**su.values(), "eye": tuple(su.to_local((10.0, 2.2, -3.0))), "center": tuple(su.to_local((15.0, 1.3, 3.8))),
+           "radius": 1.3}
     halves = []
     for par in (0, 1):
         src = frag_src.replace("#version 430", f"#version 430\n#define PARALLAX {par}", 1)

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 from envcap.cli.output_options import add_force_argument, scene_input_files
+from envcap.evaluate.bounds import check_evaluation, estimate_evaluation
 from envcap.evaluate.report import write_report
 from envcap.evaluate.result import EvaluationResult
 from envcap.evaluate.run import DEFAULT_LOBE_POWERS, evaluate_scene
@@ -14,7 +15,7 @@ from envcap.evaluate.sweep import DEFAULT_SWEEP, Sweep
 from envcap.outputs import claim_output_dir
 from envcap.probeset.bake import bake_probe_set
 from envcap.probeset.store import read_probe_set
-from envcap.runtime.methods import METHODS
+from envcap.runtime import methods as runtime_methods
 from envcap.scene import load_scene
 from envcap.scene.segment import street_segment
 
@@ -52,12 +53,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, type=Path, help="report directory (written atomically)")
     p.add_argument("--positions", type=int, default=DEFAULT_SWEEP.per_street, metavar="K",
                    help=f"evaluation positions per street (default {DEFAULT_SWEEP.per_street})")
-    p.add_argument("--seed", type=int, default=DEFAULT_SWEEP.seed, help=f"sweep seed (default {DEFAULT_SWEEP.seed})")
+    p.add_argument("--seed", type=int, default=DEFAULT_SWEEP.seed, help=f"sweep seed, >= 0 (default {DEFAULT_SWEEP.seed})")
     p.add_argument("--margin", type=float, default=DEFAULT_SWEEP.margin, metavar="M",
                    help=f"lateral margin from the facades in meters (default {DEFAULT_SWEEP.margin:g})")
     p.add_argument("--resolution", type=int, default=None, metavar="N",
                    help="face size of the truth captures (default: the probe set's, at most 64)")
-    p.add_argument("--methods", default=",".join(METHODS), help=f"comma-separated subset of {','.join(METHODS)}")
+    known = runtime_methods.registered()
+    p.add_argument("--methods", default=",".join(known),
+                   help=f"comma-separated parallax methods, registered: {', '.join(known)} (default: all)")
     p.add_argument("--lobes", type=_powers, default=None, metavar="W,...",
                    help="lobe powers, 'inf' = mirror (default inf,1024,256,64,16,4,1)")
     p.add_argument("--no-images", action="store_true", help="skip plots and image strips")
@@ -72,9 +75,15 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--margin must be a finite number >= 0, got {args.margin}")
     if args.probes is None and args.probe_resolution < 4:
         raise ValueError(f"--probe-resolution must be >= 4, got {args.probe_resolution}")
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    if args.seed < 0:
+        raise ValueError(f"--seed must be an integer >= 0, got {args.seed}")
+    methods = checked_methods(args.methods)
     if args.probes is not None and len(args.scene) != 1:
         raise ValueError("--probes goes with exactly one scene (use --bake to evaluate several)")
+    # Bounds before work: positions per street (one street at least) and, if given, the truth face size.
+    powers = args.lobes or DEFAULT_LOBE_POWERS
+    check_evaluation(estimate_evaluation(args.positions, args.resolution if args.resolution is not None else 64,
+                                         len(powers), len(methods)))
     sweep = Sweep(per_street=args.positions, margin=args.margin, seed=args.seed)
     inputs = [f for name in args.scene for f in scene_input_files(name)]
     if args.probes is not None:
@@ -84,6 +93,18 @@ def run(args: argparse.Namespace) -> int:
         write_report(results, out, images=not args.no_images)
     print(f"report: {out.path / 'report.md'}")
     return 0
+
+
+def checked_methods(text: str) -> list[str]:
+    """The method names of ``--methods`` (comma-separated), each registered
+    (:mod:`envcap.runtime.methods`), else ``ValueError`` naming the option and the registered ones."""
+    names = [m.strip() for m in text.split(",") if m.strip()]
+    known = runtime_methods.registered()
+    bad = [m for m in names if m not in known]
+    if bad or not names:
+        what = f"unknown method(s) {', '.join(map(repr, bad))}" if bad else f"no method in {text!r}"
+        raise ValueError(f"--methods: {what}; registered: {', '.join(known)}")
+    return names
 
 
 def evaluate_one(name: str, args: argparse.Namespace, sweep: Sweep, methods: list[str]) -> EvaluationResult:

@@ -20,7 +20,7 @@ from envcap.evaluate.truth import with_alpha
 from envcap.prefilter import prefilter_chain
 from envcap.probeset.probe_set import ProbeSet
 from envcap.runtime import methods
-from envcap.runtime.chains import ProbeChains
+from envcap.runtime.chains import ProbeChains, SkyChain
 from envcap.runtime.methods import ParallaxMethod
 from envcap.runtime.sampling import composite, sample_sky
 from envcap.runtime.street import RuntimeStreet, StreetProbes
@@ -46,13 +46,13 @@ class Predictor:
         # The baked sky map holds the sun only when the manifest says so (bake default: no sun,
         # the sun is an analytic light); the other variant is filtered here when a sky is given.
         self.baked_sun = manifest.sky.sun_baked_in_map
-        self.sky_levels = {self.baked_sun: [np.asarray(a) for a in probe_set.sky_levels]}
+        self.sky_levels = {self.baked_sun: SkyChain(probe_set.sky_levels)}
         if sky is not None:
-            ns = self.sky_levels[self.baked_sun][0].shape[1]
+            ns = self.sky_levels[self.baked_sun].levels[0].shape[1]
             powers = tuple(float(p) for p in self.chains.powers)
             lad = LobeLadder(tuple(max(ns >> k, 1) for k in range(len(powers))), powers)
-            self.sky_levels[not self.baked_sun] = prefilter_chain(
-                with_alpha(sky.cube(ns, include_sun=not self.baked_sun)), lad, quality=quality, ctx=ctx, progress=False)
+            self.sky_levels[not self.baked_sun] = SkyChain(prefilter_chain(
+                with_alpha(sky.cube(ns, include_sun=not self.baked_sun)), lad, quality=quality, ctx=ctx, progress=False))
         self.streets = {st.name: StreetProbes.from_manifest(st) for st in manifest.streets}
 
     def local_street(self, name: str, x: ArrayLike, planes: str = "nominal") -> RuntimeStreet:

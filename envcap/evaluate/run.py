@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from tqdm import tqdm
 
 from envcap.core import cube as cubemod
+from envcap.evaluate.bounds import MAX_POSITIONS, check_evaluation, estimate_evaluation
 from envcap.evaluate.metrics import plane_misfit, relative_error_map, relative_rmse
 from envcap.evaluate.predict import Predictor
 from envcap.evaluate.report import write_report
@@ -36,6 +37,7 @@ from envcap.evaluate.shading import MATERIALS, Material, shading_errors
 from envcap.evaluate.sweep import DEFAULT_SWEEP, QUICK_SWEEP, EvalPosition, Sweep, positions_from_array, sample_positions
 from envcap.evaluate.truth import TruthRenderer, truth_grid_size
 from envcap.gpu.context import create_context
+from envcap.probeset.bake_bounds import check_gl_limits
 from envcap.probeset.manifest import Manifest
 from envcap.probeset.probe_set import ProbeSet
 from envcap.probeset.store import read_probe_set
@@ -239,6 +241,7 @@ def evaluate_scene(
     floor_probes: int = 2,
     sun_variants: Sequence[bool] = (True, False),
     progress: bool | None = None,
+    max_positions: int = MAX_POSITIONS,
 ) -> EvaluationResult:
     """Evaluate the probe set ``probe_set`` of ``scene`` against fresh captures.
 
@@ -251,16 +254,28 @@ def evaluate_scene(
     ``materials``: Eq. 3 shading metric (empty: skipped).  ``keep_worst``: keep truth and
     predictions of the worst positions (by ``planes_mip`` at w = 64, primary sky variant) for image
     strips.  ``floor_probes``: also evaluate at this many probe positions (the evaluator's own
-    floor) and measure there what compositing the sky after filtering costs.
+    floor) and measure there what compositing the sky after filtering costs.  ``max_positions``:
+    the most positions (:data:`envcap.evaluate.bounds.MAX_POSITIONS`); the position count, the
+    truth face size and the memory are checked before any work (:mod:`envcap.evaluate.bounds`).
     """
     t_all = time.perf_counter()
     settings = check_settings(scene, probe_set, methods, lobe_powers, sun_variants, resolution)
     manifest = probe_set.manifest
-    pos_list = sample_positions(manifest, sweep) if positions is None else positions_from_array(manifest, positions)
+    explicit = None if positions is None else positions_from_array(manifest, positions)
+    count = sweep.per_street * len(manifest.streets) if explicit is None else len(explicit)
+    check_evaluation(estimate_evaluation(count, settings.resolution, len(settings.lobe_powers), len(settings.methods),
+                                         len(settings.suns)), max_positions=max_positions)
+    pos_list = sample_positions(manifest, sweep) if explicit is None else explicit
     own = ctx is None
     if own:
         ctx = create_context()
-    truth = TruthRenderer(scene, settings.resolution, ctx, quality=settings.quality)
+    try:
+        check_gl_limits(ctx, settings.resolution, 0)
+        truth = TruthRenderer(scene, settings.resolution, ctx, quality=settings.quality)
+    except BaseException:
+        if own:
+            ctx.release()
+        raise
     t0 = time.perf_counter()
     predictor = Predictor(probe_set, sky=truth.sky if False in settings.suns else None, ctx=ctx, quality=settings.quality)
     t_setup = time.perf_counter() - t0

@@ -40,6 +40,8 @@ class Sweep:
             raise ValueError(f"sweep: margins must be finite and >= 0, got {self.margin}, {self.end_margin}")
         if not 0 < self.heights[0] <= self.heights[1]:
             raise ValueError(f"sweep: heights must satisfy 0 < low <= high, got {self.heights}")
+        if not (isinstance(self.seed, int) and self.seed >= 0):
+            raise ValueError(f"sweep: seed must be an integer >= 0, got {self.seed!r}")
 
 
 DEFAULT_SWEEP = Sweep()

@@ -1,8 +1,13 @@
 """A probe set's textures as the numpy twin samples them: the probes' cosine-lobe chains (a
-cube-map array per level), the lobe table, and the optional distance channel.
+cube-map array per level), the lobe table, the optional distance channel, and the sky chain.
 
 Texture lookups go through :mod:`envcap.core.cube_sampling` (the GL sampler's twin: seamless
 trilinear).  Conventions: cubes ``(6, N, N, C)`` (``envcap/core/cube.py``); premultiplied RGBA.
+
+Textures are checked when built (:class:`ProbeChains`, :class:`SkyChain`): every texel finite,
+else one-line ``ValueError`` naming the level and the layer.  The GLSL runtime cannot raise: a
+NaN texel there is NaN light, so textures are checked where they are read or built
+(``envcap.probeset.store.read_probe_set`` checks the files, these classes the arrays).
 """
 
 from __future__ import annotations
@@ -18,12 +23,50 @@ from envcap.probeset.probe_set import ProbeSet
 from envcap.runtime.mip import level_of_power, lobe_table
 
 
+def check_finite_levels(levels: Sequence[ArrayLike], what: str, layered: bool) -> None:
+    """``ValueError`` (one line naming ``what``, the level and the layer) if a texel of ``levels``
+    is NaN or Inf.  ``layered``: levels are ``(L, 6, N, N, C)`` cube arrays (``L`` layers), else
+    ``(6, N, N, C)`` cubes."""
+    for k, level in enumerate(levels):
+        a = np.asarray(level)
+        if a.dtype.kind not in "fc" or bool(np.isfinite(a).all()):
+            continue
+        bad = ~np.isfinite(a).reshape((a.shape[0], -1) if layered else (1, -1))
+        per_layer = bad.sum(axis=1)
+        layer = int(np.flatnonzero(per_layer)[0])
+        where = f"level {k}, layer {layer}" if layered else f"level {k}"
+        rest = f" ({int(per_layer.sum())} in all, in {int(np.count_nonzero(per_layer))} layer(s))" if layered else ""
+        raise ValueError(f"{what} {where}: {int(per_layer[layer])} of {bad.shape[1]} texel values are NaN/Inf{rest}; "
+                         "the runtime would turn them into NaN light")
+
+
+@dataclass(frozen=True)
+class SkyChain:
+    """The sky's cosine-lobe chain: ``levels[k]`` ``(6, M_k, M_k, C)`` convolved with the
+    normalized cos^powers[k] lobe of the probes' ladder (no lobe table of its own); every texel
+    finite (checked when built)."""
+
+    levels: Sequence[NDArray]
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "levels", [np.asarray(a) for a in self.levels])
+        if not self.levels:
+            raise ValueError("sky chain has no levels")
+        check_finite_levels(self.levels, "sky chain", layered=False)
+
+    @staticmethod
+    def of(sky: "SkyChain | Sequence[ArrayLike]") -> "SkyChain":
+        """``sky`` as a :class:`SkyChain` (a sequence of levels is checked; a chain is returned as is)."""
+        return sky if isinstance(sky, SkyChain) else SkyChain(sky)
+
+
 @dataclass(frozen=True)
 class ProbeChains:
     """``levels[k]``: ``(L, 6, N_k, N_k, 4)`` premultiplied street RGBA of the ``L`` probes (cube-array
     layers) convolved with the normalized cos^powers[k] lobe; ``powers``: the strictly decreasing
     lobe table (one power per level); ``distance``: ``(L, 6, N, N)`` radial distance (m) from each
-    probe to what it sees, 0 where the sky shows, or ``None`` (stored as float64)."""
+    probe to what it sees, 0 where the sky shows, or ``None`` (stored as float64).  Every texel of
+    ``levels`` is finite (checked when built: ``ValueError`` naming the level and the layer)."""
 
     levels: Sequence[NDArray]
     powers: NDArray[np.float64]
@@ -35,6 +78,7 @@ class ProbeChains:
         object.__setattr__(self, "powers", np.asarray(self.powers, np.float64))
         if self.powers.shape != (len(self.levels),):
             raise ValueError(f"need one lobe power per level: {len(self.levels)} levels, powers {self.powers.shape}")
+        check_finite_levels(self.levels, "probe chain", layered=True)
         if self.distance is not None:
             object.__setattr__(self, "distance", np.asarray(self.distance, np.float64))
         object.__setattr__(self, "xk", lobe_table(self.powers))

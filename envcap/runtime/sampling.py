@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.core import cube_sampling
 from envcap.runtime import methods
-from envcap.runtime.chains import ProbeChains
+from envcap.runtime.chains import ProbeChains, SkyChain
 from envcap.runtime.methods import ParallaxMethod
 from envcap.runtime.mip import level_of_power
 from envcap.runtime.street import RuntimeStreet
@@ -28,26 +28,29 @@ def composite(street: ArrayLike, sky: ArrayLike, dtype: Any = np.float64) -> NDA
     return st[..., :3] + (dtype(1) - np.clip(st[..., 3:4], 0, 1)) * sk[..., :3]
 
 
-def sample_sky(sky_levels: Sequence[NDArray], d: ArrayLike, w: ArrayLike, xk: ArrayLike) -> NDArray[np.float64]:
+def sample_sky(sky: SkyChain | Sequence[NDArray], d: ArrayLike, w: ArrayLike, xk: ArrayLike) -> NDArray[np.float64]:
     """The sky ``(..., C)`` along unit ``d`` at the unshifted level ``z(w)`` (the sky is at infinity:
-    no parallax, no mip shift).  ``sky_levels[k]``: ``(6, M_k, M_k, C)`` on the ladder ``xk``."""
-    return cube_sampling.sample_cube(sky_levels, d, level_of_power(w, xk))
+    no parallax, no mip shift).  ``sky``: a :class:`SkyChain` or its levels ``[k]``:
+    ``(6, M_k, M_k, C)`` on the ladder ``xk`` (checked finite: build the chain once to check once)."""
+    return cube_sampling.sample_cube(SkyChain.of(sky).levels, d, level_of_power(w, xk))
 
 
-def sample_street(chains: ProbeChains, sky_levels: Sequence[NDArray], street: RuntimeStreet, x: ArrayLike,
+def sample_street(chains: ProbeChains, sky_levels: SkyChain | Sequence[NDArray], street: RuntimeStreet, x: ArrayLike,
                   d: ArrayLike, w: ArrayLike, method: str | ParallaxMethod = "planes_mip") -> NDArray[np.float64]:
     """cos^w-convolved radiance ``(..., 3)`` seen from shading points ``x`` along unit ``d`` with lobe
     powers ``w`` (broadcast): the street RGBA of ``method`` (a registered name, see
-    :mod:`envcap.runtime.methods`) composited over the sky.
+    :mod:`envcap.runtime.methods`) composited over the sky ``sky_levels`` (a :class:`SkyChain`
+    or its levels, checked finite before any lookup).
 
     Twin of GLSL ``envcap_sample_nearest`` for ``planes_mip`` and ``envcap_sample_blended`` for
     ``blend`` (each method names its GLSL function, if it has one).  ``street`` must carry the
     plane set the method needs (``ParallaxMethod.planes``).
     """
     m = methods.get(method)
+    sky = SkyChain.of(sky_levels)
     x = np.asarray(x, dtype=np.float64)
     d = np.asarray(d, dtype=np.float64)
     shape = np.broadcast_shapes(x.shape, d.shape)
     d = np.broadcast_to(d, shape)
     w = np.broadcast_to(np.asarray(w, dtype=np.float64), shape[:-1])
-    return composite(m(chains, street, x, d, w), sample_sky(sky_levels, d, w, chains.xk))
+    return composite(m(chains, street, x, d, w), sample_sky(sky, d, w, chains.xk))

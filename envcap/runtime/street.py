@@ -8,6 +8,9 @@ compiles the GLSL and checks names, types and lengths, and reads the values back
 
 Conventions: world meters, +Y up; a street runs along world axis ``along`` (0 = x, 2 = z);
 ``planes`` per probe are ``(facade_min, facade_max, ground)`` in absolute world coordinates (m).
+The uniforms are street-local: world coordinates minus the street's ``origin`` (float64, kept on
+:class:`StreetUniforms`, not uploaded), subtracted in float64 and rounded to float32 once, so that
+a street 10^6 m from the world origin samples like the same street at the origin.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from envcap.probeset import manifest
 from envcap.runtime.limits import MAX_LEVELS, MAX_PROBES
 from envcap.runtime.mip import lobe_table
 from envcap.runtime.parallax import check_along, nearest_probe
+from envcap.scene.model import local_origin
 
 PLANE_SETS = ("nominal", "fitted")
 """Plane sets of a probe: ``nominal`` (the street's planes, per probe) and ``fitted`` (fitted from
@@ -76,9 +80,17 @@ class RuntimeStreet:
         """The runtime street of a manifest street (all its probes; see :class:`StreetProbes`)."""
         return StreetProbes.from_manifest(street).runtime_street(planes)
 
-    def uniforms(self, powers: Sequence[float]) -> "StreetUniforms":
-        """The GLSL uniforms of this street with the lobe table ``powers`` (see :class:`StreetUniforms`)."""
-        return StreetUniforms.of(self, powers)
+    def uniforms(self, powers: Sequence[float], origin: ArrayLike | None = None) -> "StreetUniforms":
+        """The GLSL uniforms of this street with the lobe table ``powers``, relative to ``origin``
+        (default: the street's own, :func:`street_origin`; see :class:`StreetUniforms`)."""
+        return StreetUniforms.of(self, powers, origin)
+
+
+def street_origin(street: RuntimeStreet) -> NDArray[np.float64]:
+    """The origin (3,) float64 world m of a street's local frame: the center of its probes' box
+    rounded to whole kilometers (:func:`envcap.scene.model.local_origin`, as for meshes), so
+    (0, 0, 0) for a street centered within 500 m of the world origin."""
+    return local_origin(street.positions.min(axis=0), street.positions.max(axis=0))
 
 
 def _glsl(type_: str, length: int = 1) -> Any:
@@ -87,16 +99,21 @@ def _glsl(type_: str, length: int = 1) -> Any:
 
 @dataclass(frozen=True)
 class StreetUniforms:
-    """Mirror of GLSL ``struct EnvcapStreet`` (``shaders/runtime/envcap_street.glsl``): one field
-    per struct member, same name, same order; arrays have their full GLSL length, zero-padded.
+    """Mirror of GLSL ``struct EnvcapStreet`` (``shaders/runtime/envcap_runtime.glsl``): one field
+    per struct member (:meth:`glsl_fields`), same name, same order; arrays have their full GLSL
+    length, zero-padded.  Coordinates are street-local: world meters minus ``origin``, computed in
+    float64 and rounded to float32 once.
 
     * ``along_s`` ``(MAX_PROBES,)`` float32: along-street coordinate of probe i (m), sorted;
-    * ``pos`` ``(MAX_PROBES, 4)`` float32: probe i's world position (m) in xyz, its cube-array layer in w;
-    * ``planes`` ``(MAX_PROBES, 4)`` float32: probe i's (facade_min, facade_max, ground) (m), w unused;
+    * ``pos`` ``(MAX_PROBES, 4)`` float32: probe i's street-local position (m) in xyz, its cube-array layer in w;
+    * ``planes`` ``(MAX_PROBES, 4)`` float32: probe i's (facade_min, facade_max, ground) (m,
+      street-local: the facades on the cross axis, the ground on y), w unused;
     * ``count``: number of probes (1..MAX_PROBES); ``along``: street axis, 0 = x, 2 = z;
-    * ``xk`` ``(MAX_LEVELS,)`` float32: ``log2(1 + powers[k])``, the z(w) table; ``nlevels``: its length.
+    * ``xk`` ``(MAX_LEVELS,)`` float32: ``log2(1 + powers[k])``, the z(w) table; ``nlevels``: its length;
+    * ``origin`` (3,) float64: world position (m) of the local frame; not a struct member (not
+      uploaded): shading points go to GLSL as :meth:`to_local` ``(x)``.
 
-    Each field's ``metadata`` holds its GLSL type and array length.
+    Each struct member's ``metadata`` holds its GLSL type and array length (``None`` for ``origin``).
     """
 
     along_s: NDArray[np.float32] = _glsl("float", MAX_PROBES)
@@ -106,27 +123,45 @@ class StreetUniforms:
     along: int = _glsl("int")
     xk: NDArray[np.float32] = _glsl("float", MAX_LEVELS)
     nlevels: int = _glsl("int")
+    origin: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3), metadata={"glsl": None, "length": 3})
 
     @staticmethod
-    def of(street: RuntimeStreet, powers: Sequence[float]) -> "StreetUniforms":
-        """The uniforms of ``street`` with the lobe table ``powers`` (the manifest's, strictly decreasing)."""
+    def glsl_fields() -> tuple[dataclasses.Field, ...]:
+        """The fields that are members of GLSL ``struct EnvcapStreet``, in struct order."""
+        return tuple(f for f in dataclasses.fields(StreetUniforms) if f.metadata["glsl"] is not None)
+
+    @staticmethod
+    def of(street: RuntimeStreet, powers: Sequence[float], origin: ArrayLike | None = None) -> "StreetUniforms":
+        """The uniforms of ``street`` with the lobe table ``powers`` (the manifest's, strictly
+        decreasing), relative to ``origin`` (3,) world m (default :func:`street_origin`)."""
         P = street.positions.shape[0]
         xk = lobe_table(powers)
+        o = street_origin(street) if origin is None else np.asarray(origin, np.float64).reshape(3)
+        if not np.all(np.isfinite(o)):
+            raise ValueError(f"street origin must be finite, got {o}")
+        c = 2 - street.along
 
         def padded(a: NDArray, length: int) -> NDArray[np.float32]:
             out = np.zeros((length,) + a.shape[1:], np.float32)
             out[: a.shape[0]] = a.astype(np.float32)
             return out
 
-        pos = np.concatenate([street.positions, street.layers[:, None].astype(np.float64)], axis=1)
-        planes = np.concatenate([street.planes, np.zeros((P, 1))], axis=1)
-        return StreetUniforms(padded(street.along_coords, MAX_PROBES), padded(pos, MAX_PROBES),
+        # float64 differences, rounded to float32 once (by padded)
+        pos = np.concatenate([street.positions - o, street.layers[:, None].astype(np.float64)], axis=1)
+        planes = np.concatenate([street.planes - np.array([o[c], o[c], o[1]]), np.zeros((P, 1))], axis=1)
+        return StreetUniforms(padded(street.along_coords - o[street.along], MAX_PROBES), padded(pos, MAX_PROBES),
                               padded(planes, MAX_PROBES), int(P), int(street.along), padded(xk, MAX_LEVELS),
-                              int(xk.size))
+                              int(xk.size), o.copy())
+
+    def to_local(self, x: ArrayLike) -> NDArray[np.float32]:
+        """World points ``x`` (..., 3) m in this street's local frame, as GLSL takes them:
+        ``float32(x - origin)``, the difference computed in float64."""
+        return (np.asarray(x, np.float64) - self.origin).astype(np.float32)
 
     def values(self, uniform: str = GLSL_UNIFORM) -> dict[str, Any]:
-        """``{"<uniform>.<member>": value}`` for :func:`envcap.gpu.glsl_harness.set_uniforms`."""
-        return {f"{uniform}.{f.name}": getattr(self, f.name) for f in dataclasses.fields(self)}
+        """``{"<uniform>.<member>": value}`` for :func:`envcap.gpu.glsl_harness.set_uniforms`
+        (the struct members only: ``origin`` is not uploaded)."""
+        return {f"{uniform}.{f.name}": getattr(self, f.name) for f in self.glsl_fields()}
 
 
 @dataclass(frozen=True)

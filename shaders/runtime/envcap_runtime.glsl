@@ -6,6 +6,14 @@
 // uniform with runtime/envcap_street_uniforms.glsl and fill it from the probe set's manifest
 // (envcap.runtime.street.RuntimeStreet.uniforms(powers), the Python mirror StreetUniforms).
 //
+// Coordinates are street-local: every position in EnvcapStreet is world meters minus the street's
+// origin (StreetUniforms.origin, float64 on the host, not uploaded: its probes' box center rounded
+// to whole km), subtracted in float64 and rounded to float32 once.  The shading point x passed to
+// the functions below must be in the same frame: float32(x_world - origin) computed in float64
+// (StreetUniforms.to_local), or camera-relative plus float32(camera - origin) computed in float64.
+// A street 10^6 m from the world origin then samples like the same street at the origin (world
+// float32 coordinates there have ~6 cm steps).  Directions d are frame-independent.
+//
 // Textures: `probes` is a cube-map array (layer = probe) of premultiplied RGBA street radiance
 // (alpha 0 where the sky shows), level k convolved with the normalized cos^powers[k] lobe;
 // `sky` is a cube map with the same lobe ladder.  Sampling is trilinear and seamless.
@@ -19,9 +27,9 @@
 // same order) by envcap.runtime.street.StreetUniforms; tests/runtime/test_street_uniforms.py
 // compiles this struct and checks the mirror.
 struct EnvcapStreet {
-    float along_s[ENVCAP_MAX_PROBES];  // along-street coordinate of probe i (m), ascending
-    vec4 pos[ENVCAP_MAX_PROBES];       // probe i: xyz world position (m), w = its layer in `probes`
-    vec4 planes[ENVCAP_MAX_PROBES];    // probe i: (facade_min, facade_max, ground) in world meters, w unused
+    float along_s[ENVCAP_MAX_PROBES];  // along-street coordinate of probe i (m, street-local), ascending
+    vec4 pos[ENVCAP_MAX_PROBES];       // probe i: xyz street-local position (m), w = its layer in `probes`
+    vec4 planes[ENVCAP_MAX_PROBES];    // probe i: (facade_min, facade_max, ground) in street-local m, w unused
     int count;                         // number of probes, 1 .. ENVCAP_MAX_PROBES
     int along;                         // street axis: 0 = x, 2 = z
     float xk[ENVCAP_MAX_LEVELS];       // log2(1 + powers[k]): the z(w) table of the lobe ladder

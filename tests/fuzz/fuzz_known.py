@@ -29,51 +29,11 @@ def _heads(res: Outcome) -> set[str]:
     return {p.split(":", 1)[0] for p in res.problems}
 
 
-def _opt(argv: Any, name: str) -> float | None:
-    """The number after option ``name`` in a generated argv, if there is one."""
-    if not isinstance(argv, list) or name not in argv or argv.index(name) + 1 >= len(argv):
-        return None
-    try:
-        return float(argv[argv.index(name) + 1])
-    except ValueError:
-        return None
-
-
-def _runaway_or_memory(res: Outcome) -> bool:
-    return _heads(res) <= {"runaway", "traceback"} and (res.kind == "runaway" or res.exc_type == "MemoryError")
-
-
 def _message_only(res: Outcome, *words: str) -> bool:
     return _heads(res) == {"message"} and any(w in res.message for w in words)
 
 
-def _huge_positions(argv: Any) -> bool:
-    v = _opt(argv, "--positions")
-    return v is not None and v > 1e6
-
-
-def _texels(case: Any) -> str:
-    return case.get("texels", "") if isinstance(case, dict) else ""
-
-
 _ALL = [
-    Known("cli-positions-bound", "evaluate --positions 100000000 runs away (no bound before work)",
-          "envcap/evaluate/sweep.py: sample_positions / envcap/cli/evaluate.py (bound the sweep before work)",
-          ("cli.evaluate", "cli.any"),
-          lambda argv, res: _runaway_or_memory(res) and _huge_positions(argv)),
-    Known("cli-seed-message", "--seed -1: 'expected non-negative integer' does not name --seed",
-          "envcap/cli/evaluate.py: run (check --seed and name it) or envcap/evaluate/sweep.py: Sweep",
-          ("cli.evaluate",),
-          lambda argv, res: _message_only(res, "non-negative integer")),
-    Known("cli-huge-int-message", "evaluate --resolution 99999999999999999999: 'Maximum allowed size exceeded' "
-          "(numpy's words) names neither the option nor the cost (capture's is bounded now)",
-          "envcap/core/budget.py (check sizes before numpy sees them) / envcap/evaluate (truth capture size)",
-          ("cli.evaluate", "cli.any"),
-          lambda argv, res: _message_only(res, "Maximum allowed size exceeded")),
-    Known("cli-methods-message", "evaluate --methods '': 'unknown or no method(s) []' does not name --methods",
-          "envcap/cli/evaluate.py: run (name the option in the message)",
-          ("cli.evaluate",),
-          lambda argv, res: _message_only(res, "unknown or no method")),
     Known("exr-negative", "read_exr_cube accepts a cube EXR with negative RGB or Z texels (envcap prefilter "
           "and read_probe_set now check them themselves; the reader, the door both use, does not)",
           "envcap/formats/exr_cube.py: read_exr_cube (reject RGB < 0 and Z < 0, naming the file)",
@@ -84,12 +44,6 @@ _ALL = [
           "envcap/formats/exr_cube.py: read_exr_cube (wrap the binding's UnicodeDecodeError with the path)",
           ("read.exr",),
           lambda case, res: _message_only(res, "codec can't decode")),
-    Known("runtime-nan-texture", "the numpy twin's lookup turns NaN / Inf texels into NaN radiance silently "
-          "(design question: the twin mirrors GLSL, which cannot raise)",
-          "envcap/runtime/chains.py: ProbeChains (check levels) and envcap/runtime/sampling.py: sample_street "
-          "(check sky levels), or document that textures are checked when read",
-          ("runtime.lookup",),
-          lambda case, res: _texels(case) in ("nan_probe", "nan_sky", "inf_sky") and _heads(res) == {"nonfinite"}),
 ]
 
 KNOWN: dict[str, Known] = {k.id: k for k in _ALL}

@@ -239,7 +239,6 @@ def test_pinned_a_tiny_spacing_is_refused_at_once(fuzz_base, baked, latlong_exr,
     check_argv(fuzz_base, baked, latlong_exr, argv, mention=["spacing"], target="cli.pinned", tolerate=False, timeout=2.5)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 9: cli-positions-bound")
 @PINNED
 @example(positions="100000000")
 @given(positions=st.sampled_from(["1000000000", "2147483648"]))
@@ -249,7 +248,6 @@ def test_pinned_a_huge_sweep_is_refused_at_once(fuzz_base, baked, latlong_exr, p
                timeout=2.5)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 9: cli-seed-message")
 @PINNED
 @example(seed="-1")
 @given(seed=st.sampled_from(["-2", "-99999"]))
@@ -266,19 +264,17 @@ def test_pinned_an_integer_past_int64_is_named(fuzz_base, baked, latlong_exr, va
     check_argv(fuzz_base, baked, latlong_exr, argv, mention=["resolution"], target="cli.pinned", tolerate=False)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 9: cli-huge-int-message")
 @PINNED
 @example(value="99999999999999999999")
 @given(value=st.sampled_from(["18446744073709551616", "9" * 30]))
 def test_pinned_an_integer_past_int64_is_named_by_evaluate(fuzz_base, baked, latlong_exr, value):
-    """capture's --resolution is bounded before work now (envcap/probeset/bake_bounds.py); evaluate's
-    --resolution (the truth captures) still reaches numpy: 'Maximum allowed size exceeded'."""
+    """evaluate's --resolution (the truth captures) is bounded before work (envcap/evaluate/bounds.py);
+    old: numpy's 'Maximum allowed size exceeded', naming neither the option nor the cost."""
     argv = [*EVAL[:6], "--positions", "1", *EVAL[6:]]
     argv[argv.index("--resolution") + 1] = value
     check_argv(fuzz_base, baked, latlong_exr, argv, mention=["resolution"], target="cli.pinned", tolerate=False)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 9: cli-methods-message")
 @PINNED
 @example(methods="")
 @given(methods=st.sampled_from([",", " , "]))

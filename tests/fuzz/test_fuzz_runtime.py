@@ -179,12 +179,12 @@ def test_lookup_is_finite_or_fails_in_one_line(fuzz_base, case):
     check_lookup(fuzz_base, case, tolerate=True)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 9: runtime-nan-texture")
 @PINNED
 @example(texels="nan_sky", method="planes_mip")
 @given(texels=st.sampled_from(["nan_probe", "inf_sky", "nan_sky"]), method=st.sampled_from(["blend", "nearest"]))
 def test_pinned_nan_textures_do_not_become_nan_light(fuzz_base, texels, method):
-    """NaN / Inf texels reach the lookup: today NaN radiance, silently."""
+    """NaN / Inf texels are refused when the chains are built, naming level and layer (old: NaN
+    radiance, silently)."""
     case = {"n": 4, "count": 2, "texels": texels, "x": np.array([5.0, 1.6, 0.0]), "d": np.array([0.0, 0.0, 1.0]),
             "w": 1.0, "method": method}
     check_lookup(fuzz_base, case, tolerate=False)

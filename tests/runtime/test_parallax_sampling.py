@@ -26,9 +26,11 @@ def scene(gl_ctx):
 
 
 def gl_sample(ctx, scene, fn, x, d, w):
+    """GLSL lookups at world points ``x``, passed in the street-local frame of the uniforms."""
     probes, sky, street, powers, pt, st = scene
+    uni = street.uniforms(powers)
     return run_glsl(ctx, f"o[i] = vec4({fn}(probes, sky, x[i].xyz, d[i].xyz, w[i].x, {ARGS}), 0);",
-                    {"x": x, "d": d, "w": w}, {"o": 3}, uniforms=street.uniforms(powers).values(), declarations=DECL,
+                    {"x": uni.to_local(x), "d": d, "w": w}, {"o": 3}, uniforms=uni.values(), declarations=DECL,
                     probes=pt, sky=st)["o"]
 
 

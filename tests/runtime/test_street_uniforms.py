@@ -1,8 +1,8 @@
 """The GLSL struct EnvcapStreet (shaders/runtime/envcap_runtime.glsl) and its Python mirror
 envcap.runtime.street.StreetUniforms: same members in the same order, same GLSL types and array
-lengths (from the compiled program), and values that arrive where the runtime reads them."""
+lengths (from the compiled program), and values that arrive where the runtime reads them.
+(``StreetUniforms.origin``, the street-local frame's world position, is no struct member.)"""
 
-import dataclasses
 import re
 
 import numpy as np
@@ -32,7 +32,7 @@ def _struct_members(src: str) -> list[tuple[str, str, str]]:
 
 def test_mirror_has_the_struct_members_in_order():
     members = _struct_members(shader_source("runtime/envcap_runtime.glsl"))
-    fields = dataclasses.fields(StreetUniforms)
+    fields = StreetUniforms.glsl_fields()
     assert [m[1] for m in members] == [f.name for f in fields]
     lengths = {"ENVCAP_MAX_PROBES": MAX_PROBES, "ENVCAP_MAX_LEVELS": MAX_LEVELS, "": 1}
     assert [(t, lengths[n]) for t, _, n in members] == [(f.metadata["glsl"], f.metadata["length"]) for f in fields]
@@ -47,14 +47,14 @@ def test_compiled_struct_matches_the_mirror(gl_ctx):
                for name in prog if name.startswith(GLSL_UNIFORM + ".")}
     finally:
         prog.release()
-    want = {f.name: (GL_TYPES[f.metadata["glsl"]], f.metadata["length"]) for f in dataclasses.fields(StreetUniforms)}
+    want = {f.name: (GL_TYPES[f.metadata["glsl"]], f.metadata["length"]) for f in StreetUniforms.glsl_fields()}
     assert got == want
 
 
 def test_values_arrive_where_glsl_reads_them(gl_ctx):
     probes, sky, street, powers = ss.synthetic_probe_set(8, count=5, along=2, planes=(-4.0, 7.0, 0.5), start=-3.0, end=21.0)
     uni = street.uniforms(powers)
-    for f in dataclasses.fields(StreetUniforms):
+    for f in StreetUniforms.glsl_fields():
         v = getattr(uni, f.name)
         assert np.shape(v) == (() if f.metadata["length"] == 1 else (f.metadata["length"],)) + \
             ((4,) if f.metadata["glsl"] == "vec4" else ())
