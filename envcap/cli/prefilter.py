@@ -58,7 +58,7 @@ def load_environment(path: str | Path, size: int | None) -> tuple[NDArray[np.flo
     if size is not None and (isinstance(size, bool) or int(size) < 1):
         raise ValueError(f"--size must be a positive integer, got {size}")
     try:
-        rgba, _ = read_exr_cube(path, radiance=True)
+        rgba, _ = read_exr_cube(path)
         kind = "exr-cube"
     except ExrDataError:  # truncated/corrupt, NaN/Inf or negative radiance: no other reader helps
         raise

@@ -185,7 +185,7 @@ def _read_exr(p: Path, header_only: bool) -> tuple[dict, dict[str, NDArray]]:
     return header, chans
 
 
-def read_exr_cube(path: str | os.PathLike[str], *, radiance: bool = False
+def read_exr_cube(path: str | os.PathLike[str], *, radiance: bool = True
                   ) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
     """Read an OpenEXR cube env map into ``(rgba (6, N, N, 4) float32, distance (6, N, N) | None)``.
 
@@ -193,8 +193,10 @@ def read_exr_cube(path: str | os.PathLike[str], *, radiance: bool = False
     ``distance`` is the ``Z`` channel or ``None``.  Raises ``FileNotFoundError`` for a missing
     file and ``ValueError`` for a file that is not an EXR, not a cube env map, not ``N`` by
     ``6N`` or lacks R, G or B; :class:`ExrDataError` (a ``ValueError``, one line naming the file)
-    for a truncated or corrupt file, NaN / Inf texels (with their count) and, with
-    ``radiance=True`` (an input environment map), negative R, G or B (with their count).
+    for a truncated or corrupt file (a header the binding cannot decode included), NaN / Inf
+    texels, negative Z (a distance) and, by default, negative R, G or B (radiance and premultiplied
+    street probes are never negative), each with their count.  ``radiance=False`` reads signed
+    data (e.g. a map of directions in a test) as written.
     """
     import OpenEXR
 
@@ -203,9 +205,21 @@ def read_exr_cube(path: str | os.PathLike[str], *, radiance: bool = False
         raise FileNotFoundError(f"EXR file not found: {p}")
     if not OpenEXR.isOpenExrFile(str(p)):
         raise ValueError(f"{p} is not an OpenEXR file")
+    try:
+        return _read_cube_checked(p, radiance)
+    except UnicodeDecodeError as e:
+        # a header byte the binding cannot decode: it leaves the error pending, and it surfaces
+        # at a later, unrelated line
+        raise ExrDataError(f"{p}: corrupt OpenEXR header ({e})") from e
+
+
+def _read_cube_checked(p: Path, radiance: bool) -> tuple[NDArray[np.float32], NDArray[np.float32] | None]:
+    import OpenEXR
+
     header, _ = _read_exr(p, header_only=True)  # a lat-long image is told apart before its pixels are read
-    if header.get("envmap") != OpenEXR.ENVMAP_CUBE:
-        raise ValueError(f"{p}: not a cube environment map (envmap attribute is {header.get('envmap')!r})")
+    envmap = header.get("envmap")
+    if envmap != OpenEXR.ENVMAP_CUBE:
+        raise ValueError(f"{p}: not a cube environment map (envmap attribute is {envmap!r})")
     _, chans = _read_exr(p, header_only=False)
     missing = [c for c in "RGB" if c not in chans]
     if missing:
@@ -218,14 +232,15 @@ def read_exr_cube(path: str | os.PathLike[str], *, radiance: bool = False
     nonfinite = int(np.count_nonzero(~np.all(np.isfinite(img), axis=-1)))
     if nonfinite:
         raise ExrDataError(f"{p}: RGBA holds NaN or Inf in {nonfinite} texel(s) of {6 * w * w}")
-    if radiance:
-        negative = int(np.count_nonzero(np.any(img[..., :3] < 0, axis=-1)))
-        if negative:
-            raise ExrDataError(f"{p}: {negative} texel(s) of {6 * w * w} have negative R, G or B "
-                               f"(radiance must be >= 0; smallest {float(img[..., :3].min()):g})")
+    negative = int(np.count_nonzero(np.any(img[..., :3] < 0, axis=-1))) if radiance else 0
+    if negative:
+        raise ExrDataError(f"{p}: {negative} texel(s) of {6 * w * w} have negative R, G or B "
+                           f"(radiance must be >= 0; smallest {float(img[..., :3].min()):g})")
     dist = None
     if "Z" in chans:
         dist = exr_image_to_cube(chans["Z"].astype(np.float32))
         if not np.all(np.isfinite(dist)):
             raise ExrDataError(f"{p}: Z (distance) holds NaN or Inf in {int(np.count_nonzero(~np.isfinite(dist)))} texel(s)")
+        if np.any(dist < 0):
+            raise ExrDataError(f"{p}: {int(np.count_nonzero(dist < 0))} texel(s) of Z (distance) are negative")
     return np.ascontiguousarray(exr_image_to_cube(img)), dist

@@ -88,7 +88,7 @@ def test_exrenvmap_latlong_to_cube_reads_back_in_gl_orientation(tmp_path, n):
     OpenEXR.File(hdr, {"RGBA": ll}).write(str(tmp_path / "ll.exr"))
     subprocess.run([EXRENVMAP, "-c", "-w", str(n), str(tmp_path / "ll.exr"), str(tmp_path / "c.exr")],
                    check=True, capture_output=True)
-    rgba, dist = read_exr_cube(tmp_path / "c.exr")  # exrenvmap writes a tiled half file
+    rgba, dist = read_exr_cube(tmp_path / "c.exr", radiance=False)  # exrenvmap writes a tiled half file; signed test pattern
     assert rgba.shape == (6, n, n, 4) and dist is None
     err = angle_deg(rgba[..., :3].astype(np.float64), edge_model_directions(n))
     assert err.max() < 0.1, err.max()
@@ -102,7 +102,7 @@ def test_float32_roundtrip_exact_with_distance(tmp_path):
     rgba = (rng.standard_normal((6, n, n, 4)) * 1e6).astype(np.float32)
     dist = rng.uniform(0, 500, (6, n, n)).astype(np.float32)
     write_exr_cube(tmp_path / "c.exr", rgba, dist, half=False)
-    back, dback = read_exr_cube(tmp_path / "c.exr")
+    back, dback = read_exr_cube(tmp_path / "c.exr", radiance=False)
     assert np.array_equal(back, rgba) and np.array_equal(dback, dist)
 
 
@@ -117,7 +117,7 @@ def test_half_roundtrip_and_float32_distance(tmp_path):
         assert ch["R"].pixels.dtype == np.float16 and ch["Z"].pixels.dtype == np.float32
         assert f.header()["envmap"] == OpenEXR.ENVMAP_CUBE
         assert ch["R"].pixels.shape == (6 * n, n)
-    back, dback = read_exr_cube(tmp_path / "c.exr")
+    back, dback = read_exr_cube(tmp_path / "c.exr", radiance=False)
     assert np.array_equal(back, rgba.astype(np.float16).astype(np.float32))
     assert np.all(np.abs(back - rgba) <= np.abs(rgba) * 2.0**-11 + 1e-7)  # half rounding bound
     assert np.array_equal(dback, dist)  # distance exact: stored as float32
@@ -144,7 +144,7 @@ def test_half_overflow_nan_inf(tmp_path):
         write_exr_cube(tmp_path / "c.exr", rgba)
     assert not (tmp_path / "c.exr").exists()
     write_exr_cube(tmp_path / "auto.exr", rgba, half=None)  # auto: float32
-    back, _ = read_exr_cube(tmp_path / "auto.exr")
+    back, _ = read_exr_cube(tmp_path / "auto.exr", radiance=False)
     assert back[0, 0, 0, 0] == 1e5 and np.all(np.isfinite(back))
     for bad in (np.nan, np.inf):
         r = np.ones((6, 2, 2, 4), np.float32)
@@ -162,7 +162,7 @@ def test_half_overflow_nan_inf(tmp_path):
 def test_one_texel_faces(tmp_path):
     rgba = np.arange(24, dtype=np.float32).reshape(6, 1, 1, 4)
     write_exr_cube(tmp_path / "c.exr", rgba, half=False)
-    assert np.array_equal(read_exr_cube(tmp_path / "c.exr")[0], rgba)
+    assert np.array_equal(read_exr_cube(tmp_path / "c.exr", radiance=False)[0], rgba)
 
 
 def test_bad_files(tmp_path):

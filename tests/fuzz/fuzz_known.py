@@ -34,16 +34,6 @@ def _message_only(res: Outcome, *words: str) -> bool:
 
 
 _ALL = [
-    Known("exr-negative", "read_exr_cube accepts a cube EXR with negative RGB or Z texels (envcap prefilter "
-          "and read_probe_set now check them themselves; the reader, the door both use, does not)",
-          "envcap/formats/exr_cube.py: read_exr_cube (reject RGB < 0 and Z < 0, naming the file)",
-          ("read.exr", "cli.prefilter_input"),
-          lambda case, res: _heads(res) == {"wrong"} and "negative" in res.problems[0]),
-    Known("exr-header-utf8", "a header attribute name or type with a non-UTF-8 byte: read_exr_cube raises "
-          "UnicodeDecodeError \"'utf-8' codec can't decode byte 0x80 ...\", naming no file",
-          "envcap/formats/exr_cube.py: read_exr_cube (wrap the binding's UnicodeDecodeError with the path)",
-          ("read.exr",),
-          lambda case, res: _message_only(res, "codec can't decode")),
 ]
 
 KNOWN: dict[str, Known] = {k.id: k for k in _ALL}

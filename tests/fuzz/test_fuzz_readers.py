@@ -327,25 +327,25 @@ def test_pinned_a_manifest_position_past_float32_is_refused(fuzz_base, baked, va
                     [f"streets.0.probes.0.position[0] = {value}"], tolerate=False)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 9: exr-negative")
 @PINNED
 @example(channel="R", value=-11.1)
 @given(channel=st.sampled_from("GBZ"), value=st.sampled_from([-1.0, -1e-3]))
 def test_pinned_negative_texels_in_a_cube_exr_are_refused(fuzz_base, baked, channel, value):
     """Issue 9 item 4: a cube EXR with negative texels was accepted and prefiltered into negative
-    radiance; envcap prefilter now refuses negative RGB, read_exr_cube still returns them."""
+    radiance (old: level 1 held -11.1); now read_exr_cube, the door every reader uses, refuses
+    negative R, G, B and Z with their count."""
     payload = ([(channel, 5, value)], False)
     check_exr(fuzz_base, baked, "texel", payload, [f"{channel}[5] = {value}"], tolerate=False)
     check_prefilter_cli(fuzz_base, baked, "texel", payload, [f"{channel}[5] = {value}"], tolerate=False)
 
 
-@pytest.mark.xfail(strict=True, reason="issue 9: exr-header-utf8")
 @PINNED
 @example(pos=233)
 @given(pos=st.sampled_from([30, 150, 300]))
 def test_pinned_a_non_utf8_header_byte_names_the_exr_file(fuzz_base, baked, pos):
-    """Byte 233 (in the header's ``envmap`` attribute name) set to 0x80: read_exr_cube raises the
-    codec's "'utf-8' codec can't decode byte 0x80 in position 23", naming no file (the CLI wraps it)."""
+    """Byte 233 (in the header's ``envmap`` attribute name) set to 0x80: old, read_exr_cube raised
+    the codec's "'utf-8' codec can't decode byte 0x80 in position 23", naming no file; now one line
+    naming the file ("corrupt OpenEXR header")."""
     data = bytearray((baked / "exr" / "probe_000.exr").read_bytes())
     data[pos] = 0x80
     check_exr(fuzz_base, baked, "bytes", bytes(data), [f"byte {pos} = 0x80"], tolerate=False)
