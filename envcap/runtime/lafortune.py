@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from envcap.core import cube
-from envcap.runtime.shading import shade_lafortune
+from envcap.runtime.shading import Eq3Form, shade_lafortune
 
 RadianceFn = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 """Radiance of the environment for unit directions ``(..., 3)`` -> ``(..., 3)`` (world frame)."""
@@ -92,6 +92,7 @@ def convolved_reference(radiance: RadianceFn, c: ArrayLike, w: ArrayLike, n: int
     return out
 
 
-def eq3(env: Callable[[NDArray, NDArray], NDArray], mat: Lafortune, v_local: ArrayLike, frame: ArrayLike) -> NDArray[np.float64]:
-    """Eq. 3 with ``env(dirs (M, 3), w (M,)) -> (M, 3)`` the cos^w-convolved environment."""
-    return shade_lafortune(env, v_local, frame, mat.rho_d, mat.C, mat.w, mat.rho_s)
+def eq3(env: Callable[[NDArray, NDArray], NDArray], mat: Lafortune, v_local: ArrayLike, frame: ArrayLike,
+        form: Eq3Form = "envcap") -> NDArray[np.float64]:
+    """Eq. 3 with ``env(dirs (M, 3), w (M,)) -> (M, 3)`` the cos^w-convolved environment, in ``form``."""
+    return shade_lafortune(env, v_local, frame, mat.rho_d, mat.C, mat.w, mat.rho_s, form=form)

@@ -34,6 +34,10 @@ float envcap_z_of_w(float w, float xk[ENVCAP_MAX_LEVELS], int n)
 // radiance is rho_s * weight * E_w(c), E_w = environment convolved with the normalized
 // cos^w lobe (the mip chain at level z(w)).  Fallbacks: |Cv| = 0 -> (0, 0, 1, 0) (no light);
 // log2 of |Cv|^w clamped to ENVCAP_MAX_LOG2_WEIGHT; w < 0 treated as 0.
+// Form of Eq. 3 (docs/runtime.md, "Two forms of Eq. 3"): by default envcap's, whose lobes are the
+// BRDF's own and carry the foreshortening max(c.z, 0) above.  #define ENVCAP_EQ3_PAPER_FORM
+// before the include for the paper's, whose lobes were fitted to BRDF x cos: weight =
+// |Cv|^w * 2 pi / (1 + w), no cosine factor (a lobe axis below the horizon still contributes).
 vec4 envcap_lafortune_lobe(vec3 v, vec3 C, float w)
 {
     w = max(w, 0.0);
@@ -43,7 +47,11 @@ vec4 envcap_lafortune_lobe(vec3 v, vec3 C, float w)
     vec3 c = cv / len;
     float e = min(w * log2(len), ENVCAP_MAX_LOG2_WEIGHT);
     float mag = e < -126.0 ? 0.0 : exp2(e);
+#ifdef ENVCAP_EQ3_PAPER_FORM
+    return vec4(c, mag * (2.0 * ENVCAP_PI / (1.0 + w)));
+#else
     return vec4(c, mag * (2.0 * ENVCAP_PI / (1.0 + w)) * max(c.z, 0.0));
+#endif
 }
 
 #endif  // ENVCAP_LOBES_GLSL

@@ -93,6 +93,9 @@ vec3 envcap_sample_blended(samplerCubeArray probes, samplerCube sky, vec3 x, vec
 
 // Eq. 3 for a Lafortune BRDF  f(u, v) = rho_d / pi + sum_i rho_s[i] max(u . Cv_i, 0)^w[i]:
 //   L_o(v) ~ rho_d E_1(n) + sum_i rho_s[i] |Cv_i|^w_i (2 pi / (1 + w_i)) max(c_i . n, 0) E_wi(c_i)
+// (envcap's form, the default).  With ENVCAP_EQ3_PAPER_FORM defined the factor max(c_i . n, 0)
+// is left out: the paper's form, for lobes fitted to BRDF x cos (envcap_lafortune_lobe; a fit
+// without a diffuse term passes rho_d = 0).  docs/runtime.md, "Two forms of Eq. 3".
 // with E_w the cos^w-convolved environment seen from x (parallax + mip shift + sky, nearest
 // probe).  Frame: tangent T, bitangent B, normal N (world, orthonormal); v world, toward the
 // viewer.  Up to ENVCAP_MAX_LOBES specular lobes (C[i].xyz, w = C[i].w), rho_s[i].rgb.

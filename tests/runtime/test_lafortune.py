@@ -76,9 +76,11 @@ MATERIALS = {
 PROBE = np.array([0.0, 1.6, 0.0])
 ENVS = {"sky": ss.sky_radiance, "street": lambda d: ss.environment_radiance(PROBE, d, (-6.0, 6.0, 0.0), 0)}
 # Measured mean / max relative error (sum over RGB) of Eq. 3 with exact E_w, 40 random views
-# (docs/runtime.md).  Bounds here are 1.5x the measured values: they guard regressions, the
-# error itself is a property of the approximation (cosine at the lobe axis, no horizon clip).
-BOUNDS = {"plastic": (0.03, 0.17), "off_specular": (0.18, 0.65), "aniso": (0.02, 0.09)}
+# (docs/runtime.md, printed with -s).  Bounds here are 1.5x the measured values: they guard
+# regressions, the error itself is a property of the approximation (envcap's form: cosine at the
+# lobe axis, no horizon clip; the paper's form fed these BRDF lobes: no cosine at all).
+BOUNDS = {"envcap": {"plastic": (0.03, 0.17), "off_specular": (0.18, 0.65), "aniso": (0.02, 0.09)},
+          "paper": {"plastic": (0.46, 1.4), "off_specular": (1.0, 2.8), "aniso": (1.6, 9.6)}}
 
 
 def _views(m, seed):
@@ -94,16 +96,18 @@ def _views(m, seed):
     return v, F
 
 
+@pytest.mark.parametrize("form", list(BOUNDS))
 @pytest.mark.parametrize("env", list(ENVS))
 @pytest.mark.parametrize("mat", list(MATERIALS))
-def test_eq3_against_quadrature(env, mat):
+def test_eq3_against_quadrature(env, mat, form):
     v, F = _views(40, seed=0)
     fn, m = ENVS[env], MATERIALS[mat]
     ref = reflected_radiance_reference(fn, m, v, F, n=96)
-    approx = eq3(lambda d, w: convolved_reference(fn, d, w, n=96), m, v, F)
+    approx = eq3(lambda d, w: convolved_reference(fn, d, w, n=96), m, v, F, form=form)
     rel = np.abs(approx - ref).sum(1) / np.abs(ref).sum(1)
     assert np.all(np.isfinite(approx))
-    mean_b, max_b = BOUNDS[mat]
+    print(f"\nEq. 3 {form} form, {mat}, {env}: mean {rel.mean():.2%}, max {rel.max():.2%}")
+    mean_b, max_b = BOUNDS[form][mat]
     assert rel.mean() < mean_b and rel.max() < max_b, (rel.mean(), rel.max())
 
 
