@@ -9,12 +9,17 @@ import pytest
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 
+_SESSION_CONTEXT = []  # the session context once made, for the module-scope fixture below
+
+
 @pytest.fixture(scope="session")
 def gl_ctx():
     from envcap.gpu.context import create_context
 
     ctx = create_context()
+    _SESSION_CONTEXT.append(ctx)
     yield ctx
+    _SESSION_CONTEXT.clear()
     ctx.release()
 
 
@@ -27,6 +32,17 @@ def canyon_probe_set(gl_ctx):
     from envcap.scene import load_scene
 
     return bake_probe_set(load_scene("canyon"), resolution=8, spacing=100.0, ctx=gl_ctx, progress=False)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _gl_ctx_current_for_module_fixtures():
+    """Make the session context current before a module's own module-scope fixtures run.
+
+    A module-scope fixture that makes textures with raw GL (``CubeArrayTexture``) runs before the
+    function-scope fixture below; after a test whose bake made and released a private context, no
+    context was current and the textures were silently empty (the GLSL read zeros)."""
+    if _SESSION_CONTEXT:
+        _SESSION_CONTEXT[0].__enter__()
 
 
 @pytest.fixture(autouse=True)
