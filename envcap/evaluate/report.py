@@ -203,10 +203,7 @@ def _plots(results: Sequence[EvaluationResult], out: Path) -> list[str]:
         ax.set_title(f"{lobe_power_label(lp)}, all scenes")
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "error_vs_lateral.png")
-    plt.close(fig)
-    files.append("error_vs_lateral.png")
+    files.append(_save_figure(plt, fig, out, "error_vs_lateral.png"))
     # error vs plane misfit (where three planes are the wrong model), w = 64, sun out of the sky if evaluated
     fig, ax = plt.subplots(figsize=(6.5, 4.2), dpi=100)
     for m in [m for m in ("nearest", "planes_mip", "fitted_planes_mip", "depth_reproject", "blend") if m in methods]:
@@ -219,10 +216,7 @@ def _plots(results: Sequence[EvaluationResult], out: Path) -> list[str]:
     ax.set_yscale("log")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "error_vs_misfit.png")
-    plt.close(fig)
-    files.append("error_vs_misfit.png")
+    files.append(_save_figure(plt, fig, out, "error_vs_misfit.png"))
     # error vs lobe power, one panel per scene
     ncol = min(3, len(results))
     nrow = math.ceil(len(results) / ncol)
@@ -245,11 +239,16 @@ def _plots(results: Sequence[EvaluationResult], out: Path) -> list[str]:
         ax.set_title(f"{res.scene} (solid: no sun; dotted: sun in sky)", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(out / "error_vs_lobe.png")
-    plt.close(fig)
-    files.append("error_vs_lobe.png")
+    files.append(_save_figure(plt, fig, out, "error_vs_lobe.png"))
     return files
+
+
+def _save_figure(plt: Any, fig: Any, out: Path, name: str) -> str:
+    """Lay out ``fig``, write it as ``out/name``, close it; returns ``name`` (for the file list)."""
+    fig.tight_layout()
+    fig.savefig(out / name)
+    plt.close(fig)
+    return name
 
 
 def _strips(res: EvaluationResult, out: Path) -> list[str]:

@@ -242,5 +242,6 @@ def _read_cube_checked(p: Path, radiance: bool) -> tuple[NDArray[np.float32], ND
         if not np.all(np.isfinite(dist)):
             raise ExrDataError(f"{p}: Z (distance) holds NaN or Inf in {int(np.count_nonzero(~np.isfinite(dist)))} texel(s)")
         if np.any(dist < 0):
-            raise ExrDataError(f"{p}: {int(np.count_nonzero(dist < 0))} texel(s) of Z (distance) are negative")
+            raise ExrDataError(f"{p}: {int(np.count_nonzero(dist < 0))} texel(s) of Z (distance) are negative "
+                               f"(smallest {float(dist.min()):g}); distances are >= 0 m")
     return np.ascontiguousarray(exr_image_to_cube(img)), dist

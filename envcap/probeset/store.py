@@ -114,9 +114,6 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
             _, d = read_exr_cube(root / name)
             if d is None or d.shape != (6, n, n):
                 raise ValueError(f"{name}: missing or mis-sized Z (distance) channel")
-            if np.any(d < 0):
-                raise ValueError(f"{root / name}: {int(np.count_nonzero(d < 0))} texel(s) of Z (distance) are "
-                                 f"negative (smallest {float(d.min()):g}); distances are >= 0 m")
             ds.append(d)
         dist = np.stack(ds).astype(np.float32)
     return ProbeSet(manifest=manifest, levels=levels, distance=dist, sky_levels=sky)

@@ -6,13 +6,12 @@ closed forms under a constant environment."""
 import numpy as np
 import pytest
 
-from envcap.gpu.cube_array import CubeArrayTexture, cube_texture
 from envcap.gpu.glsl_harness import run_glsl
 from envcap.runtime.chains import ProbeChains
 from envcap.runtime.sampling import sample_street
 from envcap.runtime.shading import lafortune_lobe, shade_lafortune
 
-from runtime_fixtures import ARGS, DECL, probe_set
+from runtime_fixtures import ARGS, DECL
 
 # Two lobes (anisotropic w = 60, mirror-like w = 300), as the "aniso" material of test_lafortune
 RHO_D = np.array([0.05, 0.04, 0.03])
@@ -28,16 +27,6 @@ C[1] = vec4({C[1, 0]}, {C[1, 1]}, {C[1, 2]}, {W[1]}); rs[1] = vec3({RHO_S[1, 0]}
 o[i] = vec4(envcap_shade_lafortune(probes, sky, x[i].xyz, t[i].xyz, b[i].xyz, nrm[i].xyz, v[i].xyz,
                                    vec3({RHO_D[0]}, {RHO_D[1]}, {RHO_D[2]}), C, rs, 2, {ARGS}), 0.0);
 """
-
-
-@pytest.fixture(scope="module")
-def scene(gl_ctx):
-    probes, sky, street, powers = probe_set()
-    pt = CubeArrayTexture(probes)
-    st = cube_texture(gl_ctx, sky)
-    yield probes, sky, street, powers, pt, st
-    pt.release()
-    st.release()
 
 
 def f32(a):

@@ -9,20 +9,9 @@ from envcap.runtime.chains import ProbeChains
 from envcap.runtime.methods import BUILTIN
 from envcap.runtime.sampling import composite, sample_street
 from envcap.runtime import synthetic_street as ss
-from envcap.gpu.cube_array import CubeArrayTexture, cube_texture
 from envcap.gpu.glsl_harness import run_glsl
 
 from runtime_fixtures import ARGS, DECL, probe_set
-
-
-@pytest.fixture(scope="module")
-def scene(gl_ctx):
-    probes, sky, street, powers = probe_set()
-    pt = CubeArrayTexture(probes)
-    st = cube_texture(gl_ctx, sky)
-    yield probes, sky, street, powers, pt, st
-    pt.release()
-    st.release()
 
 
 def gl_sample(ctx, scene, fn, x, d, w):
