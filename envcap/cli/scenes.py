@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from envcap.gpu.context import create_context
-from envcap.outputs.guard import check_writable, resolve_output
+from envcap.outputs.guard import check_file_replaceable, check_writable, resolve_output
 from envcap.scene import list_scenes, load_scene, scene_path
 from envcap.scene.scene_preview import save_previews
 
@@ -18,7 +18,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="build each scene and print triangles, bounding box, streets and effects")
     p.add_argument("--preview", metavar="DIR", type=Path,
                    help="also write DIR/scenes_NAME.png (street-level view above a top view)")
+    p.add_argument("--force", action="store_true",
+                   help="overwrite DIR/scenes_NAME.png even if envcap did not write it (it has no envcap PNG mark)")
     p.set_defaults(func=run)
+
+
+def _preview_path(folder: Path, scene_name: str) -> Path:
+    return Path(folder) / f"scenes_{Path(scene_name).stem}.png"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -35,6 +41,8 @@ def run(args: argparse.Namespace) -> int:
     ctx = None
     if args.preview:
         check_writable(resolve_output(args.preview))  # before any scene is built
+        for name, _ in names:
+            check_file_replaceable(_preview_path(args.preview, name), args.force)
         ctx = create_context()
     try:
         for name, _ in names:
@@ -50,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"    street {st.name}: along {st.axis} [{st.start:g}, {st.end:g}] m, facade planes "
                       f"{'z' if st.axis == 'x' else 'x'} = {st.facade_min:g} / {st.facade_max:g} m, probe line {st.center_line:g}")
             if args.preview:
-                out = save_previews(ctx, scene, Path(args.preview) / f"scenes_{Path(name).stem}.png")
+                out = save_previews(ctx, scene, _preview_path(args.preview, name), force=args.force)
                 print(f"    preview {out}")
     finally:
         if ctx is not None:

@@ -15,7 +15,7 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
-from envcap.outputs.marker import MARKER_NAME, is_replaceable
+from envcap.outputs.marker import MARKER_NAME, PNG_MARK, is_replaceable, png_marked
 
 
 class OutputRefused(ValueError):
@@ -79,3 +79,11 @@ def check_replaceable(final: Path, force: bool) -> None:
         raise OutputRefused(f"output directory {final} is not empty and was not written by envcap "
                             f"(it has no {MARKER_NAME} file); choose another output directory, "
                             f"or use --force to replace it")
+
+
+def check_file_replaceable(path: Path, force: bool) -> None:
+    """Refuse to overwrite an existing file that envcap did not write (a PNG without
+    :data:`~envcap.outputs.marker.PNG_MARK`), unless ``force``."""
+    if not force and path.exists() and not png_marked(path):
+        raise OutputRefused(f"{path} exists and was not written by envcap (no '{PNG_MARK[0]}: {PNG_MARK[1]}' "
+                            f"PNG text); choose another folder, or use --force to overwrite it")

@@ -8,6 +8,10 @@ Every output directory envcap writes carries it at its top level::
 ``"evaluation-report"``, ``"benchmark"``, or ``"output"`` for a library call that did not say).
 envcap replaces an existing non-empty directory only when it carries this marker, or when the
 user passes ``--force`` (``force=True``).
+
+A single PNG that envcap writes outside such a directory (``envcap scenes --preview DIR``) carries
+the same claim as a PNG text chunk ``Software: envcap`` (:data:`PNG_MARK`); envcap replaces an
+existing file of that name only when it carries it (or with ``--force``).
 """
 
 from __future__ import annotations
@@ -15,6 +19,8 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+
+from PIL import Image
 
 from envcap import __version__
 
@@ -49,3 +55,17 @@ def is_replaceable(directory: str | os.PathLike[str]) -> bool:
         if next(entries, None) is None:
             return True
     return read_marker(path) is not None
+
+
+PNG_MARK = ("Software", "envcap")
+"""The PNG text chunk (key, value) of a single PNG file envcap wrote."""
+
+
+def png_marked(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` is a PNG whose text chunks carry :data:`PNG_MARK` (False for any other
+    file, an unreadable one included)."""
+    try:
+        with Image.open(path) as img:
+            return img.format == "PNG" and img.info.get(PNG_MARK[0]) == PNG_MARK[1]
+    except (OSError, ValueError):
+        return False

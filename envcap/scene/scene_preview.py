@@ -11,10 +11,12 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from PIL import Image
+from PIL import Image, PngImagePlugin
 
 from envcap.core.resources import shader_source
 from envcap.outputs import atomic_output_file
+from envcap.outputs.guard import check_file_replaceable
+from envcap.outputs.marker import PNG_MARK
 from envcap.scene.model import Scene, Street
 
 
@@ -104,8 +106,12 @@ def render(ctx: Any, scene: Scene, mvp: NDArray[np.float64], size: tuple[int, in
     return img.copy()
 
 
-def save_previews(ctx: Any, scene: Scene, path: str | Path, width: int = 640) -> Path:
-    """Write one PNG: the first street's street-level view above a top-down view of the streets."""
+def save_previews(ctx: Any, scene: Scene, path: str | Path, width: int = 640, *, force: bool = False) -> Path:
+    """Write one PNG: the first street's street-level view above a top-down view of the streets.
+
+    The PNG carries envcap's mark (:data:`envcap.outputs.marker.PNG_MARK`); an existing ``path``
+    without it is not overwritten unless ``force`` (:class:`~envcap.outputs.guard.OutputRefused`)."""
+    check_file_replaceable(Path(path), force)
     top, aspect = top_view_matrix(scene)
     th = int(min(max(round(width / max(aspect, 1e-3)), 160), 640))
     parts = []
@@ -115,5 +121,7 @@ def save_previews(ctx: Any, scene: Scene, path: str | Path, width: int = 640) ->
     parts.append(render(ctx, scene, top, (width, th)))
     img = np.concatenate(parts, axis=0)
     with atomic_output_file(path) as tmp:
-        Image.fromarray(img).save(tmp, format="PNG", optimize=True)
+        info = PngImagePlugin.PngInfo()
+        info.add_text(*PNG_MARK)
+        Image.fromarray(img).save(tmp, format="PNG", optimize=True, pnginfo=info)
     return Path(path)

@@ -121,6 +121,25 @@ def test_an_output_that_cannot_be_written_is_refused_before_any_work(tmp_path):
     assert tree_bytes(tmp_path) == {"file": b"x"}
 
 
+# "envcap never overwrites a file it did not write": scenes --preview DIR writes single PNG files
+# beside the user's own (e.g. docs/images); it used to replace any DIR/scenes_NAME.png.
+def test_a_preview_png_envcap_did_not_write_is_not_overwritten(tmp_path):
+    from PIL import Image
+
+    theirs = tmp_path / "scenes_planes.png"
+    theirs.write_bytes(b"their picture")
+    _refused(run_envcap("scenes", "planes", "--preview", tmp_path), "was not written by envcap", "--force")
+    assert tree_bytes(tmp_path) == {"scenes_planes.png": b"their picture"}
+    r = run_envcap("scenes", "planes", "--preview", tmp_path, "--force")
+    assert r.returncode == 0, r.stderr
+    with Image.open(theirs) as img:
+        assert img.info.get("Software") == "envcap"
+    first = theirs.read_bytes()
+    r = run_envcap("scenes", "planes", "--preview", tmp_path)  # its own file: replaced without --force
+    assert r.returncode == 0, r.stderr
+    assert theirs.read_bytes() == first
+
+
 def _read_only_folder(tmp_path):
     if os.geteuid() != 0:
         ro = tmp_path / "ro"
