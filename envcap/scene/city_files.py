@@ -7,9 +7,11 @@ The files are what OpenStreetMap -> Blender / Mitsuba pipelines produce, hard pa
   ``PROJECTED_OFFSET``: about 512 km east, 5403 km north, float64 vertices), every
   ``inward_every``-th building **wound inward**;
 * ``terrain.ply``: the terrain as a height-field grid (``terrain_cell`` m), same frame;
-* ``textured/facade_house.glb``: one building as glTF 2.0 with a ``baseColorTexture`` (a window
-  grid), a ``baseColorFactor`` and an ``emissiveFactor``; ``textured/obj_house.obj`` + ``.mtl``:
-  one as OBJ with ``Kd`` and ``map_Kd`` (these two are left out of ``buildings/``);
+* ``textured/facade_house.glb``: one building as glTF 2.0 (+Y up as its spec says, local
+  coordinates around the house: its own transform, in ``truth.json``) with a
+  ``baseColorTexture`` (a window grid), a ``baseColorFactor`` and an ``emissiveFactor``;
+  ``textured/obj_house.obj`` + ``.mtl``: one as OBJ (Z-up, projected, like the PLYs) with ``Kd``
+  and ``map_Kd`` (these two are left out of ``buildings/``);
 * ``city.xml``: a Mitsuba 3 scene: a ``diffuse`` bsdf per material (one ``twosided``, the OBJ's
   with a ``bitmap`` texture), a ``ply``/``obj`` shape per file referencing its bsdf, a
   ``to_world`` transform on the terrain (identity translate), and two emitters (``constant``,
@@ -126,12 +128,13 @@ def _export_ply(path: Path, verts: NDArray[np.float64], faces: NDArray[np.int64]
 
 def _textured(verts: NDArray[np.float64], faces: NDArray[np.int64], uv_m: NDArray[np.float64], color: tuple[float, float, float],
               emissive: tuple[float, float, float]) -> trimesh.Trimesh:
+    """A textured mesh; ``verts`` already in the file's frame."""
     material = trimesh.visual.material.PBRMaterial(
         baseColorTexture=window_texture(), baseColorFactor=[*(int(255 * c) for c in color), 255],
         emissiveFactor=list(emissive), metallicFactor=0.0, roughnessFactor=1.0)
     uv = np.stack([uv_m[:, 0] / 4.0, uv_m[:, 1] / 3.5], axis=1)
     visual = trimesh.visual.TextureVisuals(uv=uv, material=material)
-    return trimesh.Trimesh(world_to_file(verts), faces, visual=visual, process=False)
+    return trimesh.Trimesh(verts, faces, visual=visual, process=False)
 
 
 def _mitsuba_xml(layout: CityLayout, shapes: list[tuple[str, str, str]]) -> ET.ElementTree:
@@ -171,18 +174,21 @@ def write_city(layout: CityLayout, out_dir: Path, terrain_cell: float = 10.0) ->
     (out_dir / "buildings").mkdir(parents=True)
     (out_dir / "textured").mkdir()
     shapes: list[tuple[str, str, str]] = []
+    gltf_offset = [0.0, 0.0, 0.0]
     triangles = 0
     inward_files: list[str] = []
     cells = layout.spec.facade_cells
     for index, b in enumerate(layout.buildings):
         verts, faces, uv = building_mesh(b, cells)
-        if index == TEXTURED_GLTF:
-            mesh = _textured(verts, faces, uv, MATERIALS[b.material], (0.0, 0.0, 0.0))
+        if index == TEXTURED_GLTF:   # glTF is +Y up (its spec): local coordinates around the house
+            local = np.round(b.footprint.mean(axis=0))
+            gltf_offset = [float(local[0]), 0.0, float(local[1])]
+            mesh = _textured(verts - np.array(gltf_offset), faces, uv, MATERIALS[b.material], (0.0, 0.0, 0.0))
             mesh.export(out_dir / "textured" / "facade_house.glb")
             triangles += len(faces)
             continue
         if index == TEXTURED_OBJ:
-            mesh = _textured(verts, faces, uv, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
+            mesh = _textured(world_to_file(verts), faces, uv, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
             obj_text, extra = trimesh.exchange.obj.export_obj(mesh, include_texture=True, mtl_name="obj_house.mtl", return_texture=True)
             (out_dir / "textured" / "obj_house.obj").write_text(obj_text)
             for fname, data in extra.items():
@@ -215,7 +221,10 @@ def write_city(layout: CityLayout, out_dir: Path, terrain_cell: float = 10.0) ->
         "building_triangles": triangles,
         "terrain_triangles": terrain_triangles,
         "inward_files": inward_files,
-        "textured_files": ["textured/facade_house.glb", "textured/obj_house.obj"],
+        "textured_files": [
+            {"file": "textured/facade_house.glb", "up_axis": "y", "offset": gltf_offset},
+            {"file": "textured/obj_house.obj", "up_axis": "z", "offset": [-PROJECTED_OFFSET[0], 0.0, PROJECTED_OFFSET[1]]},
+        ],
     }
     (out_dir / "truth.json").write_text(json.dumps(truth, indent=1, allow_nan=True) + "\n")
     return truth
