@@ -36,6 +36,7 @@ from envcap.capture.effects.base import CaptureEffect, EffectInputs, SkyLike, ca
 from envcap.capture.outputs import CaptureSet, ProbeCapture
 from envcap.capture.projection import face_clip_matrix_reversed
 from envcap.core.checks import positive_int
+from envcap.core.color import srgb_to_linear
 from envcap.core.resources import shader_source
 from envcap.gpu.context import create_context
 from envcap.gpu.float_depth import FloatDepthGL
@@ -126,8 +127,11 @@ class CubeCapture:
         self.passes_run: list[str] = []
         self.pass_times_s: dict[str, float] = {}
 
-        self._prog = ctx.program(vertex_shader=shader_source("capture/capture_vert.glsl"),
-                                 fragment_shader=capture_fragment_source(self.applied_effects))
+        textured = {"ENVCAP_TEXTURED": 1} if mesh.textured and has_tris else None
+        self._prog = ctx.program(vertex_shader=shader_source("capture/capture_vert.glsl", textured),
+                                 fragment_shader=capture_fragment_source(self.applied_effects, textured))
+        self._textures: list[Any] = []   # bound to units 0, 1, ... for every probe
+        self._effect_objs: list[Any] = []
         self._vao = None
         self._vbo = self._ibo = self._indirect = None
         self.chunks: TriangleChunks | None = None
@@ -144,8 +148,10 @@ class CubeCapture:
             # Attributes that a shader variant does not use are optimized away: skip their bytes.
             used = [a for a in _ATTRIBUTES if self._prog.get(a, None) is not None]
             fmt = " ".join("3f" if a in used else "12x" for a in _ATTRIBUTES)
-            self._vao = ctx.vertex_array(self._prog, [(self._vbo, fmt, *used)],
-                                         index_buffer=self._ibo, index_element_size=4)
+            content = [(self._vbo, fmt, *used)]
+            if textured:
+                content.append(self._surface_textures(mesh))
+            self._vao = ctx.vertex_array(self._prog, content, index_buffer=self._ibo, index_element_size=4)
         n = self.size
         self._color = ctx.texture((3 * n, 2 * n), 4, dtype="f4")
         self._depth = ctx.depth_renderbuffer((3 * n, 2 * n))
@@ -155,8 +161,6 @@ class CubeCapture:
         self._gl = FloatDepthGL()
         self._depth32 = self._gl.attach_float_depth(self._fbo.glo, 3 * n, 2 * n)
         self._face_clip = [face_clip_matrix_reversed(f, self.near, self.far).T for f in range(6)]  # column-major
-        self._textures: list[Any] = []   # bound to units 0, 1, ... for every probe
-        self._effect_objs: list[Any] = []
 
         inputs = EffectInputs(ctx=ctx, sky=sky, positions=mesh.positions, origin=mesh.origin, vertex_buffer=self._vbo,
                               index_buffer=self._ibo, max_texture_size=max_size)
@@ -175,6 +179,24 @@ class CubeCapture:
         except BaseException:
             self.release()  # a failed effect leaves no GL objects behind
             raise
+
+    def _surface_textures(self, mesh: SceneMesh) -> tuple[Any, str, str]:
+        """Upload a textured mesh's images (decoded to linear, float16, mipmapped, repeating) as
+        a 2D texture array on the next texture unit, and its (u, v, layer) per vertex; returns
+        the vertex-array entry of the latter."""
+        assert mesh.textures is not None and mesh.uv_layer is not None
+        ctx = self.ctx
+        k, s = mesh.textures.shape[0], mesh.textures.shape[1]
+        linear = srgb_to_linear(mesh.textures[..., :3] / 255.0).astype(np.float16)
+        tex = ctx.texture_array((s, s, k), 3, np.ascontiguousarray(linear).tobytes(), dtype="f2")
+        tex.build_mipmaps()
+        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        tex.anisotropy = 16.0
+        uvl = ctx.buffer(np.ascontiguousarray(mesh.uv_layer, dtype=np.float32).tobytes())
+        set_uniforms(self._prog, {"surface_textures": len(self._textures)})
+        self._textures.append(tex)
+        self._effect_objs += [tex, uvl]
+        return (uvl, "3f", "in_uv_layer")
 
     def _record(self, name: str, seconds: float) -> None:
         if name not in self.passes_run:

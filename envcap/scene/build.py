@@ -60,8 +60,9 @@ def build_scene(spec: SceneSpec) -> Scene:
             if stats["buildings"] == before:
                 _warn_if_empty(spec.source, side_key(si, side_index), s, side)
 
-    if spec.mesh is not None:
-        parts.append(_import(spec.mesh, [s.street for s in spec.streets], spec.source))
+    for index, mesh_spec in enumerate(spec.meshes):
+        where = "mesh" if len(spec.meshes) == 1 else f"mesh[{index}]"
+        parts.append(_import(mesh_spec, [s.street for s in spec.streets], spec.source, where))
 
     if spec.ground is not None:
         _build_ground(builder, spec.ground, spec.streets, parts)
@@ -77,28 +78,34 @@ def build_scene(spec: SceneSpec) -> Scene:
     )
 
 
-def _import(m: MeshSpec, streets: list[Street], source: str) -> SceneMesh:
-    """The ``[mesh]`` geometry; a ``ValueError`` (bad file, pattern matching nothing, coordinates
-    past the limit) names the table.  Prints one note when parts were flipped, and a warning when
-    most of the mesh lies below the ground (a Z-up file read without ``up_axis = "z"``)."""
+def _import(m: MeshSpec, streets: list[Street], source: str, table: str = "mesh") -> SceneMesh:
+    """One ``[mesh]`` / ``[[mesh]]`` table's geometry; a ``ValueError`` (bad file, pattern
+    matching nothing, coordinates past the limit) names the table.  Prints one note when parts
+    were flipped, one per thing the readers skipped, and a warning when most of the mesh lies
+    below the ground (a Z-up file read without ``up_axis = "z"``)."""
     try:
         files = select_mesh_files(m.base_dir or Path.cwd(), file=m.path, files=m.files, globs=m.globs,
                                   include=m.include, exclude=m.exclude)
         mesh, report = import_meshes(files, up_axis=m.up_axis, rotation_deg=m.rotation_deg, offset=m.offset,
-                                     scale=m.scale, albedo=m.albedo, winding=m.winding, crop=m.crop,
+                                     scale=m.scale, albedo=m.albedo, winding=m.winding, crop=m.crop, crop_by=m.crop_by,
+                                     emission_scale=m.emission_scale,
                                      streets=streets, where=str(m.path if m.path is not None and not m.files
                                                                 and not m.globs else "the selected files"))
+    except FileNotFoundError as exc:
+        raise FileNotFoundError(f"{table}: {exc}") from None
     except ValueError as exc:
-        raise ValueError(f"mesh: {exc}") from None
+        raise ValueError(f"{table}: {exc}") from None
     where = f"{source}: " if source else ""
     if report.flipped:
         names = ", ".join(report.flipped_files[:5]) + (f" and {len(report.flipped_files) - 5} more"
                                                        if len(report.flipped_files) > 5 else "")
         how = "as asked (winding = \"flip\")" if m.winding == "flip" else "wound inward"
-        print(f"envcap: note: {where}mesh: flipped {report.flipped} of {report.parts} meshes {how} (files {names})",
+        print(f"envcap: note: {where}{table}: flipped {report.flipped} of {report.parts} meshes {how} (files {names})",
               file=sys.stderr)
+    for note in report.notes:
+        print(f"envcap: note: {where}{table}: skipped or approximated: {note}", file=sys.stderr)
     if report.below_ground > BELOW_GROUND_SHARE:
-        print(f"envcap: warning: {where}mesh: {100 * report.below_ground:.0f} % of the imported geometry's height "
+        print(f"envcap: warning: {where}{table}: {100 * report.below_ground:.0f} % of the imported geometry's height "
               f"lies below the ground (y = 0) after the import transform: a Z-up file needs up_axis = \"z\"",
               file=sys.stderr)
     return mesh

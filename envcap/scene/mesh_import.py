@@ -1,4 +1,4 @@
-"""Import triangle meshes (glTF/GLB, OBJ, PLY, or a directory of PLY files) into the envcap frame.
+"""Import triangle meshes (glTF/GLB, OBJ, PLY, Mitsuba 3 XML, or a directory of PLY files) into the envcap frame.
 
 The transform from file coordinates ``p`` to envcap world coordinates (meters, +Y up) is,
 in this order (see ``docs/scenes.md``)::
@@ -11,8 +11,9 @@ in this order (see ``docs/scenes.md``)::
 
 Geometry is made flat-shaded: every triangle gets its own three vertices and its face normal
 (from the file's winding, counter-clockwise = front).  Degenerate (zero-area) triangles are
-dropped.  Vertex or face colors, if present, are read as sRGB and become linear albedo;
-otherwise the default ``albedo`` is used.  Imported meshes have no emission.
+dropped.  Materials (vertex or face colors as sRGB, glTF / MTL / Mitsuba diffuse colours,
+textures, emission) are read by :mod:`envcap.scene.mesh_surfaces` and
+:mod:`envcap.scene.mitsuba_xml`; where a file has none, the default ``albedo`` is used.
 
 After the transform, :func:`import_meshes` (see :mod:`envcap.scene.mesh_parts`) splits the
 geometry into parts (each file's connected pieces), keeps the parts that meet a crop box (whole:
@@ -26,18 +27,23 @@ Errors are one line naming the file: whatever the loader (trimesh) raises become
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from envcap.core.color import srgb_to_linear
 from envcap.scene.limits import COORDINATE_LIMIT_M
 from envcap.scene.mesh_parts import component_labels, inward_parts, parts_meeting_box
 from envcap.scene.mesh_select import mesh_files
+from envcap.scene.mesh_surfaces import Surfaces, read_mesh_surfaces
+from envcap.scene.mitsuba_xml import read_mitsuba_surfaces
 from envcap.scene.model import SceneMesh, Street
+
+CROP_MODES = ("part", "triangle")
+"""``crop_by`` of :func:`import_meshes`: keep whole parts that meet the crop box, or triangles."""
 
 WINDING_MODES = ("auto", "keep", "flip")
 """``winding`` of :func:`import_meshes`: flip the parts found wound inward, none, or all."""
@@ -70,53 +76,12 @@ def import_transform(
     return t @ rot @ up @ s
 
 
-def _load_trimesh(path: Path) -> Any:
-    """The file as a ``trimesh.Trimesh``; any failure of the loader (a bad file, a module trimesh
-    needs and cannot import, memory) is a one-line ``ValueError`` naming the file."""
-    try:
-        import trimesh  # heavy (~0.8 s): imported only when a mesh is actually read
-
-        m = trimesh.load(str(path), force="mesh", process=False)
-    except Exception as exc:  # trimesh raises many kinds, and its optional imports may fail
-        raise ValueError(f"cannot read mesh file {path}: {_one_line(exc)}") from None
-    if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
-        raise ValueError(f"mesh file {path} has no triangles")
-    return m
-
-
-def _one_line(exc: Exception, limit: int = 300) -> str:
-    """``Type: message`` on one line, at most ``limit`` characters."""
-    text = " ".join(f"{type(exc).__name__}: {exc}".split())
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _read(path: Path, default_albedo: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`_flat` of the file; a failure reading its arrays (odd visuals, bad indices) names the file."""
-    m = _load_trimesh(path)
-    try:
-        finite = bool(np.all(np.isfinite(np.asarray(m.vertices, np.float64))))
-        flat = _flat(m, default_albedo) if finite else None
-    except Exception as exc:
-        raise ValueError(f"cannot read mesh file {path}: {_one_line(exc)}") from None
-    if flat is None:
-        raise ValueError(f"mesh file {path} has NaN or Inf vertex positions")
-    return flat
-
-
-def _flat(m: Any, default_albedo: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Per-corner positions (T, 3, 3) and albedo (T, 3, 3) of a trimesh."""
-    v = np.asarray(m.vertices, np.float64)
-    f = np.asarray(m.faces, np.int64)
-    tri = v[f]
-    alb = np.broadcast_to(default_albedo, tri.shape).copy()
-    kind = getattr(m.visual, "kind", None)
-    if kind == "vertex":
-        vc = np.asarray(m.visual.vertex_colors)[:, :3] / 255.0  # uint8 codes: in [0, 1]
-        alb = srgb_to_linear(vc)[f]
-    elif kind == "face":
-        fc = np.asarray(m.visual.face_colors)[:, :3] / 255.0
-        alb = np.repeat(srgb_to_linear(fc)[:, None, :], 3, axis=1)
-    return tri, alb
+def read_surfaces(path: Path, default_albedo: NDArray[np.float64], emission_scale: float = 100.0) -> Surfaces:
+    """Per-corner triangles and materials of a mesh file or a Mitsuba scene XML
+    (:mod:`envcap.scene.mesh_surfaces`, :mod:`envcap.scene.mitsuba_xml`); failures name the file."""
+    if path.suffix.lower() == ".xml":
+        return read_mitsuba_surfaces(path, default_albedo, emission_scale)
+    return read_mesh_surfaces(path, default_albedo, emission_scale)
 
 
 @dataclass(frozen=True)
@@ -132,6 +97,8 @@ class ImportReport:
     flipped: int
     flipped_files: tuple[str, ...]
     below_ground: float
+    notes: tuple[str, ...] = ()
+    """What the readers took approximately or skipped (Mitsuba emitters, unsupported bsdfs, ...)."""
 
 
 def import_mesh(
@@ -163,12 +130,18 @@ def import_meshes(
     crop: tuple[Sequence[float], Sequence[float]] | None = None,
     streets: Sequence[Street] = (),
     where: str = "mesh",
+    emission_scale: float = 100.0,
+    crop_by: str = "part",
 ) -> tuple[SceneMesh, ImportReport]:
     """Load mesh ``files`` (concatenated, in order) as one flat-shaded SceneMesh, and what was done.
 
     See the module docstring for the transform order.  ``albedo`` (linear RGB in [0, 1]) is used
-    where a file has no vertex or face colors.  ``crop``: ``(min, max)`` world corners (m, after
-    the transform); the parts that meet it are kept whole.  ``winding``: one of
+    where a file has no material of its own (see :mod:`envcap.scene.mesh_surfaces`: vertex colors,
+    glTF / MTL / Mitsuba materials and textures; ``emission_scale`` converts emissive factors to
+    radiance).  ``crop``: ``(min, max)`` world corners (m, after
+    the transform); with ``crop_by = "part"`` the parts that meet it are kept whole (buildings),
+    with ``"triangle"`` the triangles that meet it (terrain: a triangle is kept when its bounding
+    box meets the crop box).  ``winding``: one of
     :data:`WINDING_MODES`; ``streets`` tell which way a facade sheet (a part enclosing no volume)
     should face (:func:`envcap.scene.mesh_parts.inward_parts`).  Raises ``FileNotFoundError`` /
     ``ValueError`` (one line naming the file or ``where``; also for vertices past
@@ -180,14 +153,13 @@ def import_meshes(
     default_albedo = np.asarray(albedo, np.float64)
     if default_albedo.shape != (3,) or not np.all((default_albedo >= 0) & (default_albedo <= 1)):
         raise ValueError(f"albedo must be 3 values in [0, 1], got {albedo!r}")
-    tris, albs = [], []
-    for f in files:
-        t, a = _read(f, default_albedo)
-        tris.append(t)
-        albs.append(a)
-    file_of = np.repeat(np.arange(len(tris)), [t.shape[0] for t in tris])
-    tri = np.concatenate(tris)
-    alb = np.concatenate(albs)
+    surfaces = [read_surfaces(Path(f), default_albedo, emission_scale) for f in files]
+    joined = Surfaces.join(surfaces)
+    source_names = [name for name, _ in joined.sources]     # a file, or a Mitsuba shape's file
+    sizes = [count for _, count in joined.sources]
+    file_of = np.repeat(np.arange(len(sizes)), sizes)
+    tri, alb, emission, uvl = joined.tri, joined.albedo, joined.emission, joined.uvl
+    notes = tuple(f"{Path(f).name}: {n}" for f, sf in zip(files, surfaces) for n in sf.notes)
     with np.errstate(over="ignore", invalid="ignore"):
         tri = tri @ m4[:3, :3].T + m4[:3, 3]
         reach = float(np.max(np.abs(tri)))
@@ -197,19 +169,26 @@ def import_meshes(
                          f"change scale or offset")
     part = np.zeros(tri.shape[0], np.int64)
     start, parts = 0, 0
-    for t in tris:
-        labels = component_labels(tri[start:start + t.shape[0]])
-        part[start:start + t.shape[0]] = labels + parts
+    for size in sizes:
+        labels = component_labels(tri[start:start + size])
+        part[start:start + size] = labels + parts
         parts += int(labels.max(initial=-1)) + 1
-        start += t.shape[0]
+        start += size
     cropped = 0
+    if crop_by not in CROP_MODES:
+        raise ValueError(f"crop_by must be one of {list(CROP_MODES)}, got {crop_by!r}")
     if crop is not None:
-        keep = parts_meeting_box(tri, part, crop[0], crop[1])
+        if crop_by == "part":
+            keep = parts_meeting_box(tri, part, crop[0], crop[1])
+        else:
+            lo, hi = np.asarray(crop[0], np.float64), np.asarray(crop[1], np.float64)
+            keep = np.all((tri.max(axis=1) >= lo) & (tri.min(axis=1) <= hi), axis=1)
         if not np.any(keep):
             raise ValueError(f"{where}: the crop box {list(crop[0])} .. {list(crop[1])} meets none of the {parts} parts "
                              f"(the mesh spans {list(np.round(tri.min(axis=(0, 1)), 2))} .. "
                              f"{list(np.round(tri.max(axis=(0, 1)), 2))} after the transform)")
-        tri, alb, file_of = tri[keep], alb[keep], file_of[keep]
+        tri, alb, emission, file_of = tri[keep], alb[keep], emission[keep], file_of[keep]
+        uvl = uvl[keep] if uvl is not None else None
         part = np.unique(part[keep], return_inverse=True)[1].reshape(-1)
         cropped, parts = parts - int(part.max()) - 1, int(part.max()) + 1
     flip_part = np.zeros(parts, bool)
@@ -221,18 +200,23 @@ def import_meshes(
     if np.any(flip):
         tri[flip] = tri[flip][:, [0, 2, 1]]
         alb[flip] = alb[flip][:, [0, 2, 1]]
-    flipped_files = tuple(dict.fromkeys(Path(files[i]).name for i in file_of[flip]))
+        emission[flip] = emission[flip][:, [0, 2, 1]]
+        if uvl is not None:
+            uvl[flip] = uvl[flip][:, [0, 2, 1]]
+    flipped_files = tuple(dict.fromkeys(source_names[i] for i in file_of[flip]))
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(n, axis=1)
     scale_ref = max(float(np.abs(tri).max()), 1.0)
     keep = length > 1e-12 * scale_ref * scale_ref
     if not np.any(keep):
         raise ValueError(f"mesh {where} has only degenerate (zero-area) triangles")
-    tri, alb, n = tri[keep], alb[keep], n[keep] / length[keep, None]
+    tri, alb, emission, n = tri[keep], alb[keep], emission[keep], n[keep] / length[keep, None]
     t = tri.shape[0]
     y_lo, y_hi = float(tri[..., 1].min()), float(tri[..., 1].max())
     below = 0.0 if y_lo >= 0 else (min(0.0, y_hi) - y_lo) / max(y_hi - y_lo, 1e-300)
-    report = ImportReport(parts, cropped, int(np.unique(part[flip]).size), flipped_files, below)
+    report = ImportReport(parts, cropped, int(np.unique(part[flip]).size), flipped_files, below, notes)
     mesh = SceneMesh.from_world(tri.reshape(-1, 3), np.repeat(n, 3, axis=0), alb.reshape(-1, 3),
-                                np.zeros((3 * t, 3)), np.arange(3 * t, dtype=np.uint32).reshape(t, 3))
+                                emission.reshape(-1, 3), np.arange(3 * t, dtype=np.uint32).reshape(t, 3))
+    if uvl is not None and joined.textures:
+        mesh = dataclasses.replace(mesh, uv_layer=uvl[keep].reshape(-1, 3), textures=np.stack(joined.textures))
     return mesh, report

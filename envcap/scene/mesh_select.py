@@ -21,7 +21,7 @@ import fnmatch
 from pathlib import Path
 from typing import Sequence
 
-MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off")
+MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off", ".xml")
 """File suffixes (lower case) the importer reads (through trimesh)."""
 
 

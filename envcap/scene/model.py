@@ -53,6 +53,12 @@ class SceneMesh:
     radiance in the sky's units (linear RGB, cd/m^2-scaled, see :mod:`envcap.sky.base`).
     Normals are unit length and face the side that is lit (flat shading: vertices are not shared
     between faces of different normal).
+
+    Textured surfaces (optional, both or neither): ``uv_layer`` (V, 3) float32 is a vertex's
+    texture coordinates (u, v; OpenGL convention, v = 0 at the image's bottom row) and the layer
+    of ``textures`` it reads, -1 for none; ``textures`` (K, S, S, 4) uint8 are sRGB RGBA images,
+    row 0 = the bottom row (t = 0, ready for upload).  A textured vertex's diffuse reflectance is
+    ``albedo`` times the texel (decoded to linear), repeating outside [0, 1].
     """
 
     positions: NDArray[np.float32]
@@ -61,6 +67,8 @@ class SceneMesh:
     emission: NDArray[np.float32]
     indices: NDArray[np.uint32]
     origin: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+    uv_layer: NDArray[np.float32] | None = None
+    textures: NDArray[np.uint8] | None = None
 
     def __post_init__(self) -> None:
         v = self.positions.shape[0]
@@ -78,6 +86,21 @@ class SceneMesh:
         if origin.shape != (3,) or not np.all(np.isfinite(origin)):
             raise ValueError(f"SceneMesh.origin must be 3 finite numbers, got {self.origin!r}")
         object.__setattr__(self, "origin", origin)
+        if (self.uv_layer is None) != (self.textures is None):
+            raise ValueError("SceneMesh.uv_layer and SceneMesh.textures go together (both or neither)")
+        if self.textures is not None and self.uv_layer is not None:
+            t, uvl = self.textures, self.uv_layer
+            if t.dtype != np.uint8 or t.ndim != 4 or t.shape[1] != t.shape[2] or t.shape[3] != 4 or not t.shape[0]:
+                raise ValueError(f"SceneMesh.textures must be (K, S, S, 4) uint8 with K >= 1, got {t.dtype} {t.shape}")
+            if uvl.shape != (v, 3) or not np.all(np.isfinite(uvl)):
+                raise ValueError(f"SceneMesh.uv_layer must be finite with shape ({v}, 3), got {uvl.shape}")
+            if uvl.size and (uvl[:, 2].min() < -1 or uvl[:, 2].max() >= t.shape[0] or np.any(uvl[:, 2] != np.round(uvl[:, 2]))):
+                raise ValueError(f"SceneMesh.uv_layer layers must be whole numbers in [-1, {t.shape[0] - 1}]")
+
+    @property
+    def textured(self) -> bool:
+        """True when the mesh carries textures (``uv_layer`` and ``textures``)."""
+        return self.textures is not None
 
     @classmethod
     def from_world(cls, positions: NDArray[np.floating], normals: NDArray[np.floating],
@@ -109,7 +132,7 @@ class SceneMesh:
         if np.array_equal(o, self.origin):
             return self
         pos = (self.positions.astype(np.float64) + (self.origin - o)).astype(np.float32)
-        return SceneMesh(pos, self.normals, self.albedo, self.emission, self.indices, o)
+        return SceneMesh(pos, self.normals, self.albedo, self.emission, self.indices, o, self.uv_layer, self.textures)
 
     @staticmethod
     def concatenate(parts: list["SceneMesh"]) -> "SceneMesh":
@@ -126,6 +149,7 @@ class SceneMesh:
                 if bounds else np.zeros(3)
             parts = [p.rebased(origin) for p in parts]
         offs = np.cumsum([0] + [p.positions.shape[0] for p in parts[:-1]])
+        uv_layer, textures = _joined_textures(parts)
         return SceneMesh(
             np.concatenate([p.positions for p in parts]).astype(np.float32),
             np.concatenate([p.normals for p in parts]).astype(np.float32),
@@ -133,7 +157,31 @@ class SceneMesh:
             np.concatenate([p.emission for p in parts]).astype(np.float32),
             np.concatenate([p.indices + np.uint32(o) for p, o in zip(parts, offs)]).astype(np.uint32),
             origin,
+            uv_layer,
+            textures,
         )
+
+
+def _joined_textures(parts: list[SceneMesh]) -> tuple[NDArray[np.float32] | None, NDArray[np.uint8] | None]:
+    """``uv_layer`` and ``textures`` of concatenated ``parts``: layers renumbered, untextured
+    parts at layer -1; every part's textures must share one size."""
+    stacks = [p.textures for p in parts if p.textures is not None]
+    if not stacks:
+        return None, None
+    sizes = {t.shape[1] for t in stacks}
+    if len(sizes) != 1:
+        raise ValueError(f"SceneMesh.concatenate: textures of different sizes {sorted(sizes)}")
+    uvls, base = [], 0
+    for p in parts:
+        if p.uv_layer is None or p.textures is None:
+            uvl = np.zeros((p.positions.shape[0], 3), np.float32)
+            uvl[:, 2] = -1.0
+        else:
+            uvl = p.uv_layer.copy()
+            uvl[:, 2] = np.where(uvl[:, 2] >= 0, uvl[:, 2] + base, -1.0)
+            base += p.textures.shape[0]
+        uvls.append(uvl)
+    return np.concatenate(uvls).astype(np.float32), np.concatenate(stacks)
 
 
 @dataclass(frozen=True)

@@ -40,7 +40,7 @@ from envcap.scene.limits import (
     SIZE_LIMIT_M,
     SPAN_LIMIT_M,
 )
-from envcap.scene.mesh_import import WINDING_MODES
+from envcap.scene.mesh_import import CROP_MODES, WINDING_MODES
 from envcap.scene.table import Table
 from envcap.sky.registry import SkySpec, parse_sky_spec
 
@@ -71,7 +71,7 @@ def parse_scene(data: dict[str, Any], base_dir: Path | None = None, default_name
     description = top.string("description", "")
     effects = _parse_effects(top.raw("effects"))
     sky = _parse_sky(top.raw("sky"), base_dir)
-    mesh_table = top.sub("mesh")
+    mesh_value = top.raw("mesh", None)
     street_tables = top.tables("streets")
     ground_table = top.sub("ground")
     top.close()
@@ -81,11 +81,17 @@ def parse_scene(data: dict[str, Any], base_dir: Path | None = None, default_name
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise ValueError(f"street names must be unique, repeated: {dup}")
-    mesh = None if mesh_table is None else _parse_mesh(mesh_table, base_dir)
-    if not streets and mesh is None:
+    if mesh_value is None:
+        mesh_tables = []
+    elif isinstance(mesh_value, list):
+        mesh_tables = top.tables("mesh")
+    else:
+        mesh_tables = [Table(mesh_value, "mesh")]
+    meshes = tuple(_parse_mesh(t, base_dir) for t in mesh_tables)
+    if not streets and not meshes:
         raise ValueError("a scene needs at least one [[streets]] or a [mesh]")
     return SceneSpec(name=name, description=" ".join(description.split()), effects=effects, sky=sky,
-                     streets=streets, mesh=mesh, ground=_parse_ground(ground_table), source=source)
+                     streets=streets, meshes=meshes, ground=_parse_ground(ground_table), source=source)
 
 
 def _parse_effects(v: Any) -> frozenset[str]:
@@ -106,8 +112,9 @@ def _parse_sky(v: Any, base_dir: Path | None) -> SkySpec:
 
 
 def _parse_mesh(t: Table, base_dir: Path | None) -> MeshSpec:
-    """A scene's ``[mesh]`` table (keys: file, files, glob, include, exclude, up_axis, rotation_deg,
-    offset, scale, albedo, winding, crop); at least one of file, files, glob."""
+    """A scene's ``[mesh]`` table, or one of its ``[[mesh]]`` tables (keys: file, files, glob,
+    include, exclude, up_axis, rotation_deg, offset, scale, albedo, winding, crop, crop_by,
+    emission_scale); at least one of file, files, glob."""
     base = base_dir if base_dir is not None else Path.cwd()
     file = t.raw("file", None)
     if file is not None:
@@ -139,6 +146,8 @@ def _parse_mesh(t: Table, base_dir: Path | None) -> MeshSpec:
         base_dir=base,
         winding=t.string("winding", "auto", choices=WINDING_MODES),
         crop=crop,
+        crop_by=t.string("crop_by", "part", choices=CROP_MODES),
+        emission_scale=t.number("emission_scale", 100.0, min=0.0, max=1e6),
     )
     t.close()
     return spec

@@ -154,19 +154,25 @@ class MeshSpec:
     base_dir: Path | None = None
     winding: str = "auto"
     crop: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    crop_by: str = "part"
+    """``"part"``: a crop keeps the parts (buildings) that meet it whole; ``"triangle"``: it keeps
+    the triangles that meet it (terrain)."""
+    emission_scale: float = 100.0
+    """Radiance (sky units) per unit of a file's emissive factor (glTF ``emissiveFactor``, MTL ``Ke``)."""
 
 
 @dataclass(frozen=True)
 class SceneSpec:
     """A whole scene document, checked: everything :func:`~envcap.scene.build.build_scene` needs.
 
-    ``ground`` is ``None`` when the document disables it; ``source`` names the file (or is empty)."""
+    ``meshes``: the ``[mesh]`` table or the ``[[mesh]]`` tables, in order; ``ground`` is ``None``
+    when the document disables it; ``source`` names the file (or is empty)."""
 
     name: str
     description: str
     effects: frozenset[str]
     sky: SkySpec
     streets: tuple[StreetSpec, ...]
-    mesh: MeshSpec | None
+    meshes: tuple[MeshSpec, ...]
     ground: GroundSpec | None
     source: str

@@ -11,6 +11,12 @@ in vec3 v_local;
 in vec3 v_normal;
 in vec3 v_albedo;
 in vec3 v_emission;
+#ifdef ENVCAP_TEXTURED
+// Surface textures (SceneMesh.textures): linear RGB, mipmapped, repeating; albedo x texel.
+in vec2 v_uv;
+flat in float v_layer;
+uniform sampler2DArray surface_textures;
+#endif
 
 layout(location = 0) out vec4 out_color;
 
@@ -27,7 +33,11 @@ void main() {
     if (!back) {
         vec3 E = vec3(0.0);   // irradiance on the surface
         // @effects:irradiance
-        L = v_albedo * (1.0 / PI) * E;
+        vec3 albedo = v_albedo;
+#ifdef ENVCAP_TEXTURED
+        if (v_layer >= 0.0) albedo *= texture(surface_textures, vec3(v_uv, v_layer)).rgb;
+#endif
+        L = albedo * (1.0 / PI) * E;
         // @effects:radiance
     }
     out_color = vec4(L, back ? -dist : dist);

@@ -6,6 +6,11 @@ in vec3 in_position;   // meters, relative to the mesh origin (SceneMesh.origin)
 in vec3 in_normal;     // unit, world
 in vec3 in_albedo;     // diffuse reflectance [0, 1]
 in vec3 in_emission;   // emitted radiance
+#ifdef ENVCAP_TEXTURED
+in vec3 in_uv_layer;   // texture coordinates (u, v) and layer of surface_textures (-1: none)
+out vec2 v_uv;
+flat out float v_layer;
+#endif
 
 uniform vec3 probe;       // probe center minus the mesh origin (float64 on the CPU, rounded once)
 uniform mat4 face_clip;   // (position - probe, 1) -> clip
@@ -23,5 +28,9 @@ void main() {
     v_normal = in_normal;
     v_albedo = in_albedo;
     v_emission = in_emission;
+#ifdef ENVCAP_TEXTURED
+    v_uv = in_uv_layer.xy;
+    v_layer = in_uv_layer.z;
+#endif
     gl_Position = face_clip * vec4(rel, 1.0);
 }

@@ -42,7 +42,7 @@ def test_every_table_is_typed_with_the_documented_defaults():
     assert b.side_min.layout == RandomBuildingsSpec(count=None, width=(3.0, 5.0), height=(5.0, 5.0),
                                                     depth=(10.0, 15.0), setback=(0.0, 0.0), gap_probability=0.0,
                                                     gap_width=(2.0, 6.0))
-    assert b.side_max is None and spec.mesh is None
+    assert b.side_max is None and spec.meshes == ()
     assert spec.ground == GroundSpec(albedo=(0.18, 0.18, 0.18), extent=1000.0, center=None, checker=0.0,
                                      albedo2=(0.08, 0.08, 0.08), checker_extent=200.0)
     assert parse_scene({**DOC, "ground": {"enabled": False}}).ground is None
@@ -66,7 +66,7 @@ def test_layout_errors_are_parse_errors(tmp_path):
         parse_scene(bad)
     mesh_doc = {**DOC, "mesh": {"file": "gone.ply", "up_axis": "z"}}
     spec = parse_scene(mesh_doc, base_dir=tmp_path)  # the mesh file is read by the build, not the parse
-    assert spec.mesh == MeshSpec(path=tmp_path / "gone.ply", up_axis="z", rotation_deg=0.0, offset=(0.0, 0.0, 0.0),
-                                 scale=1.0, albedo=(0.5, 0.5, 0.5), base_dir=tmp_path)
+    assert spec.meshes == (MeshSpec(path=tmp_path / "gone.ply", up_axis="z", rotation_deg=0.0, offset=(0.0, 0.0, 0.0),
+                                 scale=1.0, albedo=(0.5, 0.5, 0.5), base_dir=tmp_path),)
     with pytest.raises(FileNotFoundError, match="gone.ply"):
         build_scene(spec)

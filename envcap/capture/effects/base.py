@@ -183,10 +183,12 @@ class CaptureEffect:
         return out
 
 
-def capture_fragment_source(effects: Sequence[CaptureEffect]) -> str:
+def capture_fragment_source(effects: Sequence[CaptureEffect], extra_defines: Mapping[str, object] | None = None) -> str:
     """The capture fragment shader with ``effects`` (applied, in registry order) compiled in:
-    each effect's name defined, and its GLSL at the ``// @effects:HOOK`` lines."""
-    defines = {k: 1 for k in sorted(e.define for e in effects)}
+    each effect's name defined, and its GLSL at the ``// @effects:HOOK`` lines; ``extra_defines``
+    (e.g. ``ENVCAP_TEXTURED``) are defined too."""
+    defines: dict[str, object] = {k: 1 for k in sorted(e.define for e in effects)}
+    defines.update(extra_defines or {})
     src = shader_source(FRAGMENT_SHADER, defines or None)
     for hook in HOOKS:
         marker = re.compile(rf"^([ \t]*)// @effects:{hook}[ \t]*$", re.MULTILINE)
