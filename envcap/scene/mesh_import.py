@@ -27,10 +27,9 @@ Errors are one line naming the file: whatever the loader (trimesh) raises become
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,12 +39,15 @@ from envcap.scene.mesh_parts import component_labels, inward_parts, parts_meetin
 from envcap.scene.mesh_select import mesh_files
 from envcap.scene.mesh_surfaces import Surfaces, read_mesh_surfaces
 from envcap.scene.mitsuba_xml import read_mitsuba_surfaces
-from envcap.scene.model import SceneMesh, Street
+from envcap.scene.model import SceneMesh, Street, local_origin
 
 CROP_MODES = ("part", "triangle")
 """``crop_by`` of :func:`import_meshes`: keep whole parts that meet the crop box, or triangles."""
 
 WINDING_MODES = ("auto", "keep", "flip")
+
+IMPORT_CHUNK = 65536
+"""Triangles transformed at a time (in place: the import holds one float64 copy of the mesh)."""
 """``winding`` of :func:`import_meshes`: flip the parts found wound inward, none, or all."""
 
 
@@ -153,48 +155,95 @@ def import_meshes(
     default_albedo = np.asarray(albedo, np.float64)
     if default_albedo.shape != (3,) or not np.all((default_albedo >= 0) & (default_albedo <= 1)):
         raise ValueError(f"albedo must be 3 values in [0, 1], got {albedo!r}")
-    surfaces = [read_surfaces(Path(f), default_albedo, emission_scale) for f in files]
-    joined = Surfaces.join(surfaces)
-    source_names = [name for name, _ in joined.sources]     # a file, or a Mitsuba shape's file
-    sizes = [count for _, count in joined.sources]
-    file_of = np.repeat(np.arange(len(sizes)), sizes)
-    tri, alb, emission, uvl = joined.tri, joined.albedo, joined.emission, joined.uvl
-    notes = tuple(f"{Path(f).name}: {n}" for f, sf in zip(files, surfaces) for n in sf.notes)
+    if crop_by not in CROP_MODES:
+        raise ValueError(f"crop_by must be one of {list(CROP_MODES)}, got {crop_by!r}")
+    pieces: list[_Piece] = []
+    notes: list[str] = []
+    span_lo, span_hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for f in files:   # one file at a time: only the kept, prepared triangles stay in memory
+        surf = read_surfaces(Path(f), default_albedo, emission_scale)
+        notes += [f"{Path(f).name}: {n}" for n in surf.notes]
+        piece = _prepare(surf, m4, where, scale, offset, crop, crop_by, winding, streets)
+        span_lo, span_hi = np.minimum(span_lo, piece.span[0]), np.maximum(span_hi, piece.span[1])
+        pieces.append(piece)
+        del surf
+    parts = sum(p.parts for p in pieces)
+    if crop is not None and parts == 0:
+        raise ValueError(f"{where}: the crop box {list(crop[0])} .. {list(crop[1])} meets none of the "
+                         f"{sum(p.cropped for p in pieces)} parts (the mesh spans {list(np.round(span_lo, 2))} .. "
+                         f"{list(np.round(span_hi, 2))} after the transform)")
+    if not sum(p.tri.shape[0] for p in pieces):
+        raise ValueError(f"mesh {where} has only degenerate (zero-area) triangles")
+    y_lo = min(float(p.tri[..., 1].min()) for p in pieces if p.tri.shape[0])
+    y_hi = max(float(p.tri[..., 1].max()) for p in pieces if p.tri.shape[0])
+    below = 0.0 if y_lo >= 0 else (min(0.0, y_hi) - y_lo) / max(y_hi - y_lo, 1e-300)
+    flipped_files = tuple(dict.fromkeys(name for p in pieces for name in p.flipped_files))
+    report = ImportReport(parts, sum(p.cropped for p in pieces), sum(p.flipped for p in pieces), flipped_files,
+                          below, tuple(notes))
+    return _assemble(pieces), report
+
+
+@dataclass
+class _Piece:
+    """One file after the transform, crop, winding fix and degenerate filter: ``tri`` (T, 3, 3)
+    float64 world m, ``albedo``/``emission`` (T, 3, 3) float32, ``normals`` (T, 3) float32 unit,
+    ``uvl`` (T, 3, 3) or None, its ``textures``; counts for the report; ``span`` its world box
+    before the crop."""
+
+    tri: NDArray[np.float64] | None
+    albedo: NDArray[np.float32] | None
+    emission: NDArray[np.float32] | None
+    normals: NDArray[np.float32] | None
+    uvl: NDArray[np.float32] | None
+    textures: list[NDArray[np.uint8]]
+    parts: int
+    cropped: int
+    flipped: int
+    flipped_files: list[str]
+    span: tuple[NDArray[np.float64], NDArray[np.float64]]
+
+
+def _prepare(surf: Surfaces, m4: NDArray[np.float64], where: str, scale: float, offset: Sequence[float],
+             crop: tuple[Sequence[float], Sequence[float]] | None, crop_by: str, winding: str,
+             streets: Sequence[Street]) -> _Piece:
+    """A file's :class:`Surfaces` (modified in place) as a :class:`_Piece`."""
+    tri, alb, emission, uvl = surf.tri, surf.albedo, surf.emission, surf.uvl
+    rot, shift = m4[:3, :3].T, m4[:3, 3]
     with np.errstate(over="ignore", invalid="ignore"):
-        tri = tri @ m4[:3, :3].T + m4[:3, 3]
+        for i in range(0, tri.shape[0], IMPORT_CHUNK):      # in place, a chunk at a time: no second copy
+            tri[i:i + IMPORT_CHUNK] = tri[i:i + IMPORT_CHUNK] @ rot + shift
         reach = float(np.max(np.abs(tri)))
     if not reach <= COORDINATE_LIMIT_M:  # also NaN / inf (overflow)
         raise ValueError(f"{where}: vertices reach {reach:.10g} m after the import transform (scale {scale:g}, "
                          f"offset {list(offset)}), beyond the coordinate limit of +-{COORDINATE_LIMIT_M:g} m; "
                          f"change scale or offset")
-    part = np.zeros(tri.shape[0], np.int64)
+    span = (tri.min(axis=(0, 1)), tri.max(axis=(0, 1)))
+    names = [name for name, _ in surf.sources]              # a file, or a Mitsuba shape's file
+    sizes = [count for _, count in surf.sources]
+    source_of = np.repeat(np.arange(len(sizes), dtype=np.int32), sizes)
+    part = np.zeros(tri.shape[0], np.int32)
     start, parts = 0, 0
-    for size in sizes:
+    for size in sizes:                                      # parts never span two sources
         labels = component_labels(tri[start:start + size])
         part[start:start + size] = labels + parts
         parts += int(labels.max(initial=-1)) + 1
         start += size
     cropped = 0
-    if crop_by not in CROP_MODES:
-        raise ValueError(f"crop_by must be one of {list(CROP_MODES)}, got {crop_by!r}")
     if crop is not None:
         if crop_by == "part":
             keep = parts_meeting_box(tri, part, crop[0], crop[1])
         else:
             lo, hi = np.asarray(crop[0], np.float64), np.asarray(crop[1], np.float64)
             keep = np.all((tri.max(axis=1) >= lo) & (tri.min(axis=1) <= hi), axis=1)
-        if not np.any(keep):
-            raise ValueError(f"{where}: the crop box {list(crop[0])} .. {list(crop[1])} meets none of the {parts} parts "
-                             f"(the mesh spans {list(np.round(tri.min(axis=(0, 1)), 2))} .. "
-                             f"{list(np.round(tri.max(axis=(0, 1)), 2))} after the transform)")
-        tri, alb, emission, file_of = tri[keep], alb[keep], emission[keep], file_of[keep]
+        tri, alb, emission, source_of = tri[keep], alb[keep], emission[keep], source_of[keep]
         uvl = uvl[keep] if uvl is not None else None
         part = np.unique(part[keep], return_inverse=True)[1].reshape(-1)
-        cropped, parts = parts - int(part.max()) - 1, int(part.max()) + 1
+        kept = int(part.max(initial=-1)) + 1
+        cropped, parts = parts - kept, kept
     flip_part = np.zeros(parts, bool)
     if winding == "flip":
         flip_part[:] = True
-    elif winding == "auto":
+    elif winding == "auto" and parts:
         flip_part = inward_parts(tri, part, streets)
     flip = flip_part[part]
     if np.any(flip):
@@ -203,20 +252,68 @@ def import_meshes(
         emission[flip] = emission[flip][:, [0, 2, 1]]
         if uvl is not None:
             uvl[flip] = uvl[flip][:, [0, 2, 1]]
-    flipped_files = tuple(dict.fromkeys(source_names[i] for i in file_of[flip]))
+    flipped_files = list(dict.fromkeys(names[i] for i in source_of[flip]))
+    flipped = int(np.unique(part[flip]).size)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(n, axis=1)
-    scale_ref = max(float(np.abs(tri).max()), 1.0)
+    scale_ref = max(float(np.abs(tri).max(initial=0.0)), 1.0)
     keep = length > 1e-12 * scale_ref * scale_ref
-    if not np.any(keep):
-        raise ValueError(f"mesh {where} has only degenerate (zero-area) triangles")
-    tri, alb, emission, n = tri[keep], alb[keep], emission[keep], n[keep] / length[keep, None]
-    t = tri.shape[0]
-    y_lo, y_hi = float(tri[..., 1].min()), float(tri[..., 1].max())
-    below = 0.0 if y_lo >= 0 else (min(0.0, y_hi) - y_lo) / max(y_hi - y_lo, 1e-300)
-    report = ImportReport(parts, cropped, int(np.unique(part[flip]).size), flipped_files, below, notes)
-    mesh = SceneMesh.from_world(tri.reshape(-1, 3), np.repeat(n, 3, axis=0), alb.reshape(-1, 3),
-                                emission.reshape(-1, 3), np.arange(3 * t, dtype=np.uint32).reshape(t, 3))
-    if uvl is not None and joined.textures:
-        mesh = dataclasses.replace(mesh, uv_layer=uvl[keep].reshape(-1, 3), textures=np.stack(joined.textures))
-    return mesh, report
+    if not np.all(keep):
+        tri, alb, emission = tri[keep], alb[keep], emission[keep]
+        uvl = uvl[keep] if uvl is not None else None
+    normals = (n[keep] / length[keep, None]).astype(np.float32)
+    return _Piece(tri, _compact(alb), _compact(emission), normals, uvl, surf.textures if uvl is not None else [], parts, cropped,
+                  flipped, flipped_files, span)
+
+
+def _compact(corners: NDArray[np.float32]) -> NDArray[np.float32]:
+    """``corners`` (T, 3, 3), or a read-only broadcast of its one value when every corner has the
+    same (a file with one material): no memory until the mesh is assembled."""
+    flat = corners.reshape(-1, 3)
+    if flat.shape[0] and np.all(flat == flat[0]):
+        return np.broadcast_to(flat[0].copy(), corners.shape)
+    return corners
+
+
+def _assemble(pieces: list[_Piece]) -> SceneMesh:
+    """The flat-shaded SceneMesh of ``pieces``, as :meth:`SceneMesh.from_world` would make it
+    (positions relative to the :func:`local_origin` of their bounds, in float64, rounded to
+    float32 once), filling one output array at a time and freeing each piece's input to it."""
+    t = sum(p.tri.shape[0] for p in pieces)
+    lo = np.min([p.tri.reshape(-1, 3).min(axis=0) for p in pieces if p.tri.shape[0]], axis=0)
+    hi = np.max([p.tri.reshape(-1, 3).max(axis=0) for p in pieces if p.tri.shape[0]], axis=0)
+    origin = local_origin(lo, hi)
+    bounds = np.cumsum([0] + [3 * p.tri.shape[0] for p in pieces])
+
+    def fill(name: str, per_corner: Callable[[NDArray[np.floating]], NDArray[np.floating]]) -> NDArray[np.float32]:
+        out = np.empty((3 * t, 3), np.float32)
+        for p, a, b in zip(pieces, bounds[:-1], bounds[1:]):
+            out[a:b] = per_corner(getattr(p, name))
+            setattr(p, name, None)            # freed as soon as copied: one output array at a time
+        return out
+
+    def points(tri: NDArray[np.float64]) -> NDArray[np.float64]:
+        pts = tri.reshape(-1, 3)
+        pts -= origin
+        return pts
+
+    positions = fill("tri", points)
+    normals = fill("normals", lambda n: np.repeat(n, 3, axis=0))
+    albedo = fill("albedo", lambda a: a.reshape(-1, 3))
+    emission = fill("emission", lambda e: e.reshape(-1, 3))
+    uv_layer, textures = None, None
+    if any(p.uvl is not None for p in pieces):
+        layers, base = [], 0
+        for p, a, b in zip(pieces, bounds[:-1], bounds[1:]):
+            if p.uvl is None:
+                uvl = np.zeros((b - a, 3), np.float32)
+                uvl[:, 2] = -1.0
+            else:
+                uvl = p.uvl.reshape(-1, 3).copy()
+                uvl[:, 2] = np.where(uvl[:, 2] >= 0, uvl[:, 2] + base, -1.0)
+                base += len(p.textures)
+            layers.append(uvl)
+        uv_layer = np.concatenate(layers)
+        textures = np.stack([tex for p in pieces for tex in p.textures])
+    return SceneMesh(positions, normals, albedo, emission, np.arange(3 * t, dtype=np.uint32).reshape(t, 3), origin,
+                     uv_layer, textures)
