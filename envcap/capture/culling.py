@@ -91,8 +91,11 @@ _SIDE_PLANES = _face_planes()
 
 
 def chunk_face_visibility(lo: NDArray[np.floating], hi: NDArray[np.floating], probe: NDArray[np.floating],
-                          near: float = 0.05, far: float = math.inf) -> NDArray[np.bool_]:
+                          near: float = 0.05, far: float = math.inf,
+                          rotation: NDArray[np.float64] | None = None) -> NDArray[np.bool_]:
     """Which boxes ``[lo, hi]`` (C, 3) meters may reach each cube face's frustum: (6, C) bool.
+    ``rotation``: (3, 3) world -> cube frame of a cube turned with its street
+    (:func:`envcap.core.street_frame.plan_rotation`); default: the world axes.
 
     Face ``f`` sees ``r = x - probe`` where ``ma >= |sc|``, ``ma >= |tc|`` and
     ``near <= ma <= far`` (``(sc, tc, ma) = R_f r``, as :func:`~envcap.capture.projection.face_clip_matrix`).  A box is
@@ -106,11 +109,11 @@ def chunk_face_visibility(lo: NDArray[np.floating], hi: NDArray[np.floating], pr
     bhi = np.asarray(hi, dtype=np.float64) - p
     scale = np.maximum(np.abs(blo), np.abs(bhi)).sum(axis=1)  # (C,) >= |r| over the box
     eps = 1e-5 * scale + 1e-6
-    n = _SIDE_PLANES  # (6, 4, 3)
+    n = _SIDE_PLANES if rotation is None else _SIDE_PLANES @ rotation  # (6, 4, 3): n . (R r) = (n R) . r
     # max over the box of n . r = sum_i max(n_i lo_i, n_i hi_i)
     reach = np.maximum(n[None] * blo[:, None, None, :], n[None] * bhi[:, None, None, :]).sum(axis=-1)  # (C, 6, 4)
     vis = np.all(reach >= -eps[:, None, None], axis=2)  # (C, 6)
-    ma = FACE_ROWS[:, 2]  # (6, 3)
+    ma = FACE_ROWS[:, 2] if rotation is None else FACE_ROWS[:, 2] @ rotation  # (6, 3)
     ma_max = np.maximum(ma[None] * blo[:, None, :], ma[None] * bhi[:, None, :]).sum(axis=-1)  # (C, 6)
     vis &= ma_max >= near - eps[:, None]
     if math.isfinite(far):
@@ -161,12 +164,12 @@ class FaceDraws:
 
 
 def face_draw_commands(chunks: TriangleChunks, probe: NDArray[np.floating], near: float = 0.05,
-                       far: float = math.inf) -> FaceDraws:
+                       far: float = math.inf, rotation: NDArray[np.float64] | None = None) -> FaceDraws:
     """The chunks of ``chunks`` each cube face at ``probe`` (3,) meters may see
-    (:func:`chunk_face_visibility`), sorted near first (:func:`box_far_distance`) and merged into
-    contiguous index ranges, as indirect draw commands."""
+    (:func:`chunk_face_visibility`, cube turned by ``rotation``), sorted near first
+    (:func:`box_far_distance`) and merged into contiguous index ranges, as indirect draw commands."""
     p = np.asarray(probe, dtype=np.float64)
-    vis = chunk_face_visibility(chunks.lo, chunks.hi, p, near, far)  # (6, C)
+    vis = chunk_face_visibility(chunks.lo, chunks.hi, p, near, far, rotation)  # (6, C)
     dist = box_far_distance(chunks.lo, chunks.hi, p)
     cmds, faces, k, triangles = [], [], 0, 0
     for f in range(6):

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import moderngl
 import numpy as np
@@ -38,6 +38,7 @@ from envcap.capture.projection import face_clip_matrix_reversed
 from envcap.core.checks import positive_int
 from envcap.core.color import srgb_to_linear
 from envcap.core.resources import shader_source
+from envcap.core.street_frame import plan_rotation
 from envcap.gpu.context import create_context
 from envcap.gpu.float_depth import FloatDepthGL
 from envcap.gpu.uniforms import set_uniforms
@@ -204,20 +205,22 @@ class CubeCapture:
         self.pass_times_s[name] = self.pass_times_s.get(name, 0.0) + seconds
 
     # -- per-probe passes -------------------------------------------------------------------------
-    def capture(self, position: Sequence[float]) -> ProbeCapture:
-        """Capture the probe at ``position`` (3,) meters; outputs per :mod:`envcap.capture.outputs`."""
+    def capture(self, position: Sequence[float], yaw_deg: float = 0.0) -> ProbeCapture:
+        """Capture the probe at ``position`` (3,) meters, its cube turned with a street at
+        ``yaw_deg`` (:mod:`envcap.core.street_frame`; 0: the world axes); outputs per
+        :mod:`envcap.capture.outputs`."""
         p = _check_position(position)
         n = self.size
         rgba = np.empty((6, n, n, 4), dtype=np.float32)
         distance = np.empty((6, n, n), dtype=np.float32)
         backfacing = np.empty((6, n, n), dtype=bool)
-        times, stats = self._capture_into(p, rgba, distance, backfacing)
+        times, stats = self._capture_into(p, rgba, distance, backfacing, yaw_deg)
         return ProbeCapture(position=p, rgba=rgba, distance=distance, backfacing=backfacing,
                             passes_run=self.passes_run + ["render", "readback"],
                             pass_times_s={**self.pass_times_s, **times}, draw_stats=stats)
 
     def _capture_into(self, p: NDArray[np.float64], rgba: NDArray[np.float32], distance: NDArray[np.float32],
-                      backfacing: NDArray[np.bool_]) -> tuple[dict[str, float], dict[str, float]]:
+                      backfacing: NDArray[np.bool_], yaw_deg: float = 0.0) -> tuple[dict[str, float], dict[str, float]]:
         """Render the probe at ``p`` (world meters) and write its outputs into the given
         (C-contiguous) arrays.
 
@@ -229,7 +232,9 @@ class CubeCapture:
         ctx = self.ctx
         stats = {"cull_s": 0.0, "triangles": 0.0, "draw_calls": 0.0}
         local = p - self.origin  # float64; rounded to float32 once, for the shader
-        draws = self._face_draws(local, stats)  # CPU time in stats["cull_s"], not in "render"
+        rotation = None if yaw_deg == 0.0 else plan_rotation(yaw_deg)
+        face_clip = self._face_clip if rotation is None else self._turned_face_clips(rotation)
+        draws = self._face_draws(local, stats, rotation)  # CPU time in stats["cull_s"], not in "render"
         t0 = time.perf_counter()
         self._fbo.use()
         self._fbo.viewport = (0, 0, 3 * n, 2 * n)
@@ -246,7 +251,7 @@ class CubeCapture:
                     if draws is not None and draws[f][1] == 0:
                         continue
                     self._fbo.viewport = ((f % 3) * n, (f // 3) * n, n, n)
-                    set_uniforms(self._prog, {"face_clip": self._face_clip[f]})
+                    set_uniforms(self._prog, {"face_clip": face_clip[f]})
                     if draws is None:
                         self._vao.render()
                     else:  # one multi-draw per face (glMultiDrawElementsIndirect)
@@ -265,7 +270,15 @@ class CubeCapture:
         np.not_equal(distance, 0.0, out=rgba[..., 3], casting="unsafe")
         return {"render": t1 - t0, "readback": t2 - t1}, stats
 
-    def _face_draws(self, p: NDArray[np.float64], stats: dict[str, float]) -> list[tuple[int, int]] | None:
+    def _turned_face_clips(self, rotation: NDArray[np.float64]) -> list[NDArray[np.float64]]:
+        """Column-major face clip matrices of a cube turned by ``rotation`` (world -> cube frame):
+        ``clip = F_f [R 0; 0 1] (x - probe, 1)``.  Lighting stays in the world frame."""
+        turn = np.eye(4)
+        turn[:3, :3] = rotation
+        return [(face_clip_matrix_reversed(f, self.near, self.far) @ turn).T for f in range(6)]
+
+    def _face_draws(self, p: NDArray[np.float64], stats: dict[str, float],
+                    rotation: NDArray[np.float64] | None = None) -> list[tuple[int, int]] | None:
         """Cull and order chunks for the probe at ``p`` (meters, relative to the mesh origin) and
         write the indirect draw commands into ``self._indirect``.  Returns per face (first
         command, number of commands); ``None``: draw everything."""
@@ -276,7 +289,7 @@ class CubeCapture:
             stats["triangles"], stats["draw_calls"] = 6.0 * int(ch.count.sum()), 6.0
             return None
         t0 = time.perf_counter()
-        draws = face_draw_commands(ch, p, self.near, self.far)
+        draws = face_draw_commands(ch, p, self.near, self.far, rotation)
         stats["triangles"] = float(draws.triangles)
         stats["draw_calls"] = float(draws.commands.shape[0])
         if draws.commands.shape[0]:
@@ -284,8 +297,11 @@ class CubeCapture:
         stats["cull_s"] = time.perf_counter() - t0
         return draws.faces
 
-    def capture_many(self, positions: NDArray[np.floating], progress: bool = True) -> CaptureSet:
-        """Capture probes at ``positions`` (P, 3) meters, with a tqdm bar when on a TTY."""
+    def capture_many(self, positions: NDArray[np.floating], progress: bool = True,
+                     on_probe: Callable[[int, CaptureSet], None] | None = None, yaw_deg: float = 0.0) -> CaptureSet:
+        """Capture probes at ``positions`` (P, 3) meters, cubes turned with a street at ``yaw_deg``
+        (:meth:`capture`), with a tqdm bar when on a TTY.
+        ``on_probe(i, out)``: called once probe ``i`` of ``out`` (the set being filled) is captured."""
         pos = np.asarray(positions, dtype=np.float64)
         if pos.ndim != 2 or pos.shape[1] != 3:
             raise ValueError(f"probe positions must have shape (P, 3), got {pos.shape}")
@@ -298,9 +314,11 @@ class CubeCapture:
                          passes_run=list(self.passes_run) + ["render", "readback"],
                          pass_times_s=dict(self.pass_times_s))
         for i in tqdm(range(count), desc="capture", unit="probe", disable=None if progress else True):
-            times, _ = self._capture_into(pos[i], out.rgba[i], out.distance[i], out.backfacing[i])
+            times, _ = self._capture_into(pos[i], out.rgba[i], out.distance[i], out.backfacing[i], yaw_deg)
             for k in ("render", "readback"):
                 out.pass_times_s[k] = out.pass_times_s.get(k, 0.0) + times[k]
+            if on_probe is not None:
+                on_probe(i, out)
         return out
 
     @classmethod
