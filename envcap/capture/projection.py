@@ -84,14 +84,17 @@ def _light_basis(l: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def light_clip_matrix(sun_dir: NDArray[np.floating], lo: NDArray[np.floating], hi: NDArray[np.floating],
-                      margin: float = 1.0) -> tuple[NDArray[np.float64], float, float]:
+                      margin: float = 1.0, occluders: NDArray[np.floating] | None = None
+                      ) -> tuple[NDArray[np.float64], float, float]:
     """Orthographic light clip matrix fitted to the box ``[lo, hi]`` seen from the sun (points in
     the frame of ``lo``, ``hi``: the capture uses the mesh origin's).
 
     ``sun_dir`` (3,) points toward the sun (any length > 0); ``lo``, ``hi`` (3,) meters.
     Returns ``(matrix, extent_xy, depth_range)``: the larger side (m) of the square light-space
     window and the depth range (m) that maps to [-1, 1] (nearest the sun -> -1).  ``margin``
-    meters pad every side so that flat boxes still have a non-zero depth range.
+    meters pad every side so that flat boxes still have a non-zero depth range.  ``occluders``
+    (K, 3): points (e.g. the whole mesh's box corners) whose depth toward the sun the map must
+    also reach, so that geometry outside the box still casts its shadow into it.
     """
     l = np.asarray(sun_dir, dtype=np.float64)
     l = l / np.linalg.norm(l)
@@ -99,6 +102,8 @@ def light_clip_matrix(sun_dir: NDArray[np.floating], lo: NDArray[np.floating], h
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     e = corners @ basis.T
     emin, emax = e.min(axis=0) - margin, e.max(axis=0) + margin
+    if occluders is not None and len(occluders):
+        emax[2] = max(emax[2], float((np.asarray(occluders, np.float64) @ basis[2]).max()) + margin)
     center = 0.5 * (emin + emax)
     half = 0.5 * max(emax[0] - emin[0], emax[1] - emin[1])
     depth = emax[2] - emin[2]

@@ -127,6 +127,9 @@ class CubeCapture:
         self.applied: frozenset[str] = frozenset(e.name for e in self.applied_effects)
         self.passes_run: list[str] = []
         self.pass_times_s: dict[str, float] = {}
+        self.effect_facts: dict[str, float] = {}
+        """Numbers the applied effects report, ``"EFFECT.NAME" -> value`` (e.g.
+        ``"sun_shadows.texel_m"``: the shadow map's texel size in meters)."""
 
         textured = {"ENVCAP_TEXTURED": 1} if mesh.textured and has_tris else None
         self._prog = ctx.program(vertex_shader=shader_source("capture/capture_vert.glsl", textured),
@@ -175,6 +178,7 @@ class CubeCapture:
                     units[name] = len(self._textures)
                     self._textures.append(tex)
                 set_uniforms(self._prog, {**setup.uniforms, **units})
+                self.effect_facts.update({f"{effect.name}.{k}": float(v) for k, v in setup.facts.items()})
                 if effect.pass_name is not None:
                     self._record(effect.pass_name, time.perf_counter() - t0)
         except BaseException:

@@ -122,12 +122,15 @@ class EffectSetup:
 
     ``uniforms``: capture-program uniform values (see :func:`envcap.gpu.uniforms.set_uniforms`
     for the conventions); ``textures``: sampler uniform name -> moderngl texture, bound to a unit
-    of its own for every probe; ``gl_objects``: released with the capture.
+    of its own for every probe; ``gl_objects``: released with the capture; ``facts``: numbers a
+    bake records (e.g. ``sun_shadows``' texel size in meters), collected in
+    :attr:`envcap.capture.renderer.CubeCapture.effect_facts` as ``"EFFECT.NAME"``.
     """
 
     uniforms: dict[str, Any] = field(default_factory=dict)
     textures: dict[str, Any] = field(default_factory=dict)
     gl_objects: list[Any] = field(default_factory=list)
+    facts: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
