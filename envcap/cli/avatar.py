@@ -1,0 +1,66 @@
+"""``envcap avatar IN --out OUT.glb [--k K] [--reduce mean|max] [--animation A] [--exclude-weight W]``:
+proxy spheres and per-vertex blockers of a skinned glTF 2.0 avatar, written into a new ``.glb``.
+
+``OUT`` gets the input's content plus the vertex attributes ``_ENVCAP_BLOCKERS`` /
+``_ENVCAP_BLOCKER_WEIGHTS`` and the extras of :mod:`envcap.dynamic.avatar_attributes`, written to
+a temporary name and renamed at the end.  ``OUT`` may never be ``IN``; an existing ``OUT`` is
+replaced only when envcap wrote it (``asset.extras.envcap == "avatar"``) or with ``--force``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+import numpy as np
+
+from envcap.dynamic.avatar_attributes import BLOCKERS_ATTRIBUTE, is_envcap_avatar, write_annotated
+from envcap.dynamic.avatar_blockers import MAX_BLOCKERS, REDUCTIONS
+from envcap.outputs import OutputRefused, atomic_output_file
+from envcap.outputs.guard import resolve_output
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("avatar", help="proxy spheres and per-vertex blocking bones of a skinned glTF avatar")
+    p.add_argument("input", metavar="IN", help="skinned glTF 2.0 avatar (.glb, or .gltf with its buffers)")
+    p.add_argument("--out", required=True, help="output .glb (a new file; never IN)")
+    p.add_argument("--k", type=int, default=MAX_BLOCKERS, help=f"blockers per vertex, 1..{MAX_BLOCKERS} (default %(default)s)")
+    p.add_argument("--reduce", choices=REDUCTIONS, default="mean",
+                   help="over the keyframes: mean (default) or max of each bone's blocking")
+    p.add_argument("--animation", type=int, default=0, help="animation whose keyframes are used (default 0)")
+    p.add_argument("--exclude-weight", type=float, default=0.0,
+                   help="a vertex ignores the bones it is skinned to with a weight above this (default 0: all)")
+    p.add_argument("--force", action="store_true", help="overwrite OUT even if envcap did not write it")
+    p.set_defaults(func=run)
+
+
+def check_target(source: Path, target: Path, force: bool) -> None:
+    """Refuse ``target`` when it is ``source``, a directory, or a file envcap did not write (unless ``force``)."""
+    if target.suffix.lower() != ".glb":
+        raise OutputRefused(f"output {target} must end in .glb (envcap writes glTF binary)")
+    if source.exists() and target.exists() and os.path.samefile(source, target):
+        raise OutputRefused(f"output {target} is the input; choose another file (--force does not change this)")
+    if target.is_dir():
+        raise OutputRefused(f"output {target} is a directory")
+    if target.exists() and not force and not is_envcap_avatar(target):
+        raise OutputRefused(f"{target} exists and was not written by envcap avatar; choose another file, "
+                            f"or use --force to overwrite it")
+
+
+def run(args: argparse.Namespace) -> int:
+    source = Path(args.input)
+    target = resolve_output(args.out)
+    check_target(source, target, args.force)
+    if not source.is_file():
+        raise FileNotFoundError(f"input avatar {source} does not exist")
+    with atomic_output_file(target) as tmp:
+        avatar, spheres, blockers = write_annotated(source, tmp, k=args.k, reduce=args.reduce,
+                                                    animation=args.animation, exclude_weight=args.exclude_weight)
+    print(f"{target}: {len(avatar.positions)} vertices, {avatar.joint_count} joints, "
+          f"{len(blockers.keyframes)} keyframes ({blockers.reduce}), {BLOCKERS_ATTRIBUTE} k={blockers.joints.shape[1]}")
+    for name, r, n in zip(avatar.joint_names, spheres.radii, spheres.vertex_counts):
+        print(f"    {name:<16} sphere radius {r:.3f} m from {n} vertices")
+    used = (blockers.scores > 0.01).sum(axis=1)
+    print(f"    blockers hiding > 1% of the hemisphere per vertex: mean {used.mean():.2f}, max {int(np.max(used))}")
+    return 0
