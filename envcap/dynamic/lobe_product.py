@@ -44,7 +44,8 @@ LN_COS_SERIES_BELOW = 0.25
 @dataclass(frozen=True)
 class LobeProduct:
     """Eq. 4-7 for ``(...)`` pairs of lobes: ``axis`` ``(..., 3)`` unit ``M``; ``peak`` (Eq. 6);
-    ``integral`` (Eq. 7, sr, for ``|Cv| = 1``); ``gamma`` the angle between ``D`` and ``C`` (rad)."""
+    ``integral`` (Eq. 7, sr, for ``|Cv| = 1``); ``gamma`` the angle between ``D`` and ``C`` (rad).
+    envcap's form (:func:`envcap.dynamic.cap_lobe.cap_lobe_product`) puts the blocked fraction in ``peak``."""
 
     axis: NDArray
     peak: NDArray
