@@ -80,3 +80,47 @@ def cap_lobe_integral(theta: float, gamma: float, w: float) -> float:
     beta, wt = gauss(edges)
     inner = np.array([azimuth_integral(b, gamma, w) for b in beta])
     return float(2.0 * np.sum(wt * np.sin(beta) * inner))
+
+
+def union_lobe_fraction(D: NDArray[np.float64], theta: NDArray[np.float64], C: NDArray[np.float64], w: float,
+                        rings: int = 32768) -> float:
+    """The fraction of the normalized lobe ``max(0, u.C)^w`` (``C`` unit) inside the union of the
+    caps ``D`` ``(K, 3)`` (unit axes) of half-angles ``theta`` ``(K,)`` (rad): float64 reference
+    for many spheres.  Exact on each ring ``{angle(u, C) = alpha}`` (the union of the caps' arcs,
+    swept on the circle), integrated over the lobe's measure ``z = cos^(w+1) alpha`` (uniform in
+    ``[0, 1]``) by the midpoint rule with ``rings`` rings, refined as ``z = 1 - (1 - v)^2``
+    near ``alpha = 0``.  Error <= 1e-5 at the default (a step of ``chi`` costs ~dz/2; checked
+    against :func:`cap_lobe_integral` and Monte Carlo in ``tests/dynamic``)."""
+    D = np.asarray(D, np.float64).reshape(-1, 3)
+    theta = np.asarray(theta, np.float64).reshape(-1)
+    C = np.asarray(C, np.float64)
+    w = max(float(w), 0.0)
+    if len(D) == 0:
+        return 0.0
+    v = (np.arange(rings) + 0.5) / rings
+    z, dz = 1 - (1 - v) ** 2, 2 * (1 - v) / rings
+    alpha = np.arccos(np.clip(np.exp(np.log(z) / (w + 1)), -1, 1))
+    perp = np.array([1.0, 0.0, 0.0]) if abs(C[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = perp - (perp @ C) * C
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(C, e1)
+    gamma = np.arccos(np.clip(D @ C, -1, 1))
+    psi = np.arctan2(D @ e2, D @ e1)                                  # azimuth of each cap's axis
+    sa, ca = np.sin(alpha)[:, None], np.cos(alpha)[:, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cphi = (np.cos(theta) - ca * np.cos(gamma)) / (sa * np.sin(gamma))
+    full = (cphi <= -1) | (np.isnan(cphi) & (ca * np.cos(gamma) + 0 >= np.cos(theta)))
+    phi = np.where(full, np.pi, np.arccos(np.clip(np.nan_to_num(cphi, nan=2.0), -1, 1)))
+    lo = np.mod(psi - phi, 2 * np.pi)
+    hi = lo + 2 * phi
+    # split arcs that pass 2 pi; empty arcs have phi = 0
+    lo2, hi2 = np.where(hi > 2 * np.pi, 0.0, 0.0), np.where(hi > 2 * np.pi, hi - 2 * np.pi, 0.0)
+    hi = np.minimum(hi, 2 * np.pi)
+    starts, ends = np.concatenate([lo, lo2], axis=1), np.concatenate([hi, hi2], axis=1)
+    order = np.argsort(starts, axis=1)
+    starts, ends = np.take_along_axis(starts, order, 1), np.take_along_axis(ends, order, 1)
+    reach = np.maximum.accumulate(ends, axis=1)
+    prev = np.concatenate([np.zeros((rings, 1)), reach[:, :-1]], axis=1)
+    covered = np.sum(np.maximum(ends - np.maximum(starts, prev), 0.0), axis=1)
+    covered = np.where(np.any(full, axis=1), 2 * np.pi, covered)
+    return float(np.sum(dz * covered / (2 * np.pi)))
