@@ -1,0 +1,13 @@
+#ifndef ENVCAP_PROBE_TEXTURE_GLSL
+#define ENVCAP_PROBE_TEXTURE_GLSL
+// The probe texture type and its lookup, for every runtime function that samples probes.
+// Desktop GL, GLSL ES 3.20 and Vulkan: a cube-map array, as below.  A target without cube-map
+// arrays (WebGL2) defines both before the include (envcap.runtime.shader_targets: a 2D array of
+// face atlases, runtime/envcap_face_atlas.glsl).  ENVCAP_PROBES_LOD(probes, dir, layer, lod) means
+// textureLod(samplerCubeArray, vec4(dir, layer), lod).  No #version: #include this.
+#ifndef ENVCAP_PROBES_SAMPLER
+#define ENVCAP_PROBES_SAMPLER samplerCubeArray
+#define ENVCAP_PROBES_LOD(probes, dir, layer, lod) textureLod(probes, vec4(dir, layer), lod)
+#endif
+
+#endif  // ENVCAP_PROBE_TEXTURE_GLSL
