@@ -192,6 +192,10 @@ class CubeCapture:
         assert mesh.textures is not None and mesh.uv_layer is not None
         ctx = self.ctx
         k, s = mesh.textures.shape[0], mesh.textures.shape[1]
+        most = int(ctx.info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 256))
+        if k > most:
+            raise ValueError(f"the scene has {k} distinct surface textures, more than this GPU's "
+                             f"GL_MAX_ARRAY_TEXTURE_LAYERS ({most}): share or atlas them")
         linear = srgb_to_linear(mesh.textures[..., :3] / 255.0).astype(np.float16)
         tex = ctx.texture_array((s, s, k), 3, np.ascontiguousarray(linear).tobytes(), dtype="f2")
         tex.build_mipmaps()

@@ -69,7 +69,7 @@ def _street_table(s: DetectedStreet) -> tuple[bool, str]:
         return False, text
     k = 0 if axis == "x" else 1
     lo, hi = sorted((s.p0[k], s.p1[k]))
-    cross = s.p0[1 - k]
+    cross = 0.5 * (s.p0[1 - k] + s.p1[1 - k])     # the middle: the street may be up to AXIS_TOL_DEG off the axis
     # the facade offsets are along the plan normal (-sin a, cos a): +Z for an X street, -X for a Z street
     sign = 1.0 if axis == "x" else -np.cos(np.radians(a - 90.0))
     planes = sorted(cross + sign * o for o in s.facade_offsets)

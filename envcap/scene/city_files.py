@@ -98,7 +98,7 @@ def terrain_mesh(layout: CityLayout, cell: float) -> tuple[NDArray[np.float64], 
     verts = np.stack([gx, layout.terrain_height(gx, gz), gz], axis=-1).reshape(-1, 3)
     nx = len(xs)
     i = (np.arange(len(zs) - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
-    # (x, z) -> (x+1, z) -> (x, z+1): the normal (dz x dx) points up for +Y
+    # corners (x, z) -> (x, z+1) -> (x+1, z): (dz x dx) points up (+Y)
     faces = np.concatenate([np.stack([i, i + nx, i + 1], 1), np.stack([i + 1, i + nx, i + nx + 1], 1)])
     return verts, faces.astype(np.int64)
 

@@ -16,8 +16,9 @@ textures, emission) are read by :mod:`envcap.scene.mesh_surfaces` and
 :mod:`envcap.scene.mitsuba_xml`; where a file has none, the default ``albedo`` is used.
 
 After the transform, :func:`import_meshes` (see :mod:`envcap.scene.mesh_parts`) splits the
-geometry into parts (each file's connected pieces), keeps the parts that meet a crop box (whole:
-terrain is not clipped per triangle yet) and flips the parts wound inward (``winding = "auto"``),
+geometry into parts (each file's, or Mitsuba shape's, connected pieces), keeps the parts that
+meet a crop box whole (``crop_by = "part"``) or the triangles that meet it (``"triangle"``:
+terrain) and flips the parts wound inward (``winding = "auto"``),
 or all of them (``"flip"``), or none (``"keep"``); the :class:`ImportReport` says what it did.
 
 Errors are one line naming the file: whatever the loader (trimesh) raises becomes a ``ValueError``
@@ -27,9 +28,11 @@ Errors are one line naming the file: whatever the loader (trimesh) raises become
 
 from __future__ import annotations
 
+import hashlib
+
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Iterable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -38,17 +41,17 @@ from envcap.scene.limits import COORDINATE_LIMIT_M
 from envcap.scene.mesh_parts import component_labels, inward_parts, parts_meeting_box
 from envcap.scene.mesh_select import mesh_files
 from envcap.scene.mesh_surfaces import Surfaces, read_mesh_surfaces
-from envcap.scene.mitsuba_xml import read_mitsuba_surfaces
+from envcap.scene.mitsuba_xml import iter_mitsuba_surfaces
 from envcap.scene.model import SceneMesh, Street, local_origin
 
 CROP_MODES = ("part", "triangle")
 """``crop_by`` of :func:`import_meshes`: keep whole parts that meet the crop box, or triangles."""
 
 WINDING_MODES = ("auto", "keep", "flip")
+"""``winding`` of :func:`import_meshes`: flip the parts found wound inward, none, or all."""
 
 IMPORT_CHUNK = 65536
-"""Triangles transformed at a time (in place: the import holds one float64 copy of the mesh)."""
-"""``winding`` of :func:`import_meshes`: flip the parts found wound inward, none, or all."""
+"""Triangles transformed at a time (in place: the import holds one float64 copy of a file)."""
 
 
 def import_transform(
@@ -76,14 +79,6 @@ def import_transform(
     t = np.eye(4)
     t[:3, 3] = offset
     return t @ rot @ up @ s
-
-
-def read_surfaces(path: Path, default_albedo: NDArray[np.float64], emission_scale: float = 100.0) -> Surfaces:
-    """Per-corner triangles and materials of a mesh file or a Mitsuba scene XML
-    (:mod:`envcap.scene.mesh_surfaces`, :mod:`envcap.scene.mitsuba_xml`); failures name the file."""
-    if path.suffix.lower() == ".xml":
-        return read_mitsuba_surfaces(path, default_albedo, emission_scale)
-    return read_mesh_surfaces(path, default_albedo, emission_scale)
 
 
 @dataclass(frozen=True)
@@ -160,13 +155,20 @@ def import_meshes(
     pieces: list[_Piece] = []
     notes: list[str] = []
     span_lo, span_hi = np.full(3, np.inf), np.full(3, -np.inf)
-    for f in files:   # one file at a time: only the kept, prepared triangles stay in memory
-        surf = read_surfaces(Path(f), default_albedo, emission_scale)
-        notes += [f"{Path(f).name}: {n}" for n in surf.notes]
-        piece = _prepare(surf, m4, where, scale, offset, crop, crop_by, winding, streets)
-        span_lo, span_hi = np.minimum(span_lo, piece.span[0]), np.maximum(span_hi, piece.span[1])
-        pieces.append(piece)
-        del surf
+    for f in files:   # one file (or Mitsuba shape) at a time: only the prepared triangles stay in memory
+        f = Path(f)
+        file_notes: list[str] = []
+        if f.suffix.lower() == ".xml":
+            shapes: Iterable[Surfaces] = iter_mitsuba_surfaces(f, default_albedo, emission_scale, file_notes)
+        else:
+            shapes = [read_mesh_surfaces(f, default_albedo, emission_scale)]
+        for surf in shapes:
+            file_notes += surf.notes
+            piece = _prepare(surf, m4, where, scale, offset, crop, crop_by, winding, streets)
+            span_lo, span_hi = np.minimum(span_lo, piece.span[0]), np.maximum(span_hi, piece.span[1])
+            pieces.append(piece)
+            del surf
+        notes += [f"{f.name}: {n}" for n in file_notes]
     parts = sum(p.parts for p in pieces)
     if crop is not None and parts == 0:
         raise ValueError(f"{where}: the crop box {list(crop[0])} .. {list(crop[1])} meets none of the "
@@ -302,18 +304,26 @@ def _assemble(pieces: list[_Piece]) -> SceneMesh:
     albedo = fill("albedo", lambda a: a.reshape(-1, 3))
     emission = fill("emission", lambda e: e.reshape(-1, 3))
     uv_layer, textures = None, None
-    if any(p.uvl is not None for p in pieces):
-        layers, base = [], 0
+    if any(p.uvl is not None and p.textures for p in pieces):
+        distinct: dict[bytes, int] = {}           # one layer per distinct image, however many files use it
+        stack: list[NDArray[np.uint8]] = []
+        uv_layer = np.zeros((3 * t, 3), np.float32)
+        uv_layer[:, 2] = -1.0                     # untextured: (0, 0) at layer -1
         for p, a, b in zip(pieces, bounds[:-1], bounds[1:]):
-            if p.uvl is None:
-                uvl = np.zeros((b - a, 3), np.float32)
-                uvl[:, 2] = -1.0
-            else:
-                uvl = p.uvl.reshape(-1, 3).copy()
-                uvl[:, 2] = np.where(uvl[:, 2] >= 0, uvl[:, 2] + base, -1.0)
-                base += len(p.textures)
-            layers.append(uvl)
-        uv_layer = np.concatenate(layers)
-        textures = np.stack([tex for p in pieces for tex in p.textures])
+            if p.uvl is None or not p.textures:
+                continue
+            index = []
+            for tex in p.textures:
+                key = hashlib.sha256(tex.tobytes()).digest()
+                if key not in distinct:
+                    distinct[key] = len(stack)
+                    stack.append(tex)
+                index.append(distinct[key])
+            remap = np.asarray(index + [-1], np.float32)                # layer -1 stays -1
+            uvl = p.uvl.reshape(-1, 3)
+            uv_layer[a:b, :2] = np.nan_to_num(uvl[:, :2], nan=0.0)      # no coordinates: (0, 0)
+            uv_layer[a:b, 2] = remap[uvl[:, 2].astype(np.int64)]
+            p.uvl = None
+        textures = np.stack(stack)
     return SceneMesh(positions, normals, albedo, emission, np.arange(3 * t, dtype=np.uint32).reshape(t, 3), origin,
                      uv_layer, textures)

@@ -5,7 +5,7 @@ Selection (``docs/scenes.md``, "Imported meshes"), all paths relative to the sce
 1. ``file``: one mesh file, or a directory whose ``*.ply`` are taken (sorted);
 2. ``files``: a list of such files or directories;
 3. ``glob``: patterns (:meth:`pathlib.Path.glob`, ``**`` recurses) of which every matching file
-   with a mesh suffix (:data:`MESH_SUFFIXES`) is taken, sorted per pattern;
+   with a mesh suffix (:data:`GLOB_SUFFIXES`: not ``.xml``) is taken, sorted per pattern;
 
 joined in that order, each file once; then ``include`` patterns keep only the files that match one
 of them and ``exclude`` patterns drop the files that match one.  A pattern (:func:`fnmatch.fnmatch`)
@@ -21,8 +21,12 @@ import fnmatch
 from pathlib import Path
 from typing import Sequence
 
-MESH_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off", ".xml")
-"""File suffixes (lower case) the importer reads (through trimesh)."""
+GLOB_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off")
+"""Mesh file suffixes (lower case, read through trimesh) that a ``glob`` picks up."""
+
+MESH_SUFFIXES = (*GLOB_SUFFIXES, ".xml")
+"""File suffixes the importer reads when a file is named: also Mitsuba 3 scene XML, which a glob
+does not pick up (it names meshes of its own, which the glob would take a second time)."""
 
 
 def mesh_files(path: Path) -> list[Path]:
@@ -74,9 +78,9 @@ def select_mesh_files(
     for pattern in globs:
         if Path(pattern).is_absolute():
             raise ValueError(f"{where}.glob: {pattern!r}: patterns are relative to the scene's directory {base_dir}")
-        hits = sorted(p for p in base_dir.glob(pattern) if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+        hits = sorted(p for p in base_dir.glob(pattern) if p.is_file() and p.suffix.lower() in GLOB_SUFFIXES)
         if not hits:
-            raise ValueError(f"{where}.glob: {pattern!r} matches no mesh file ({', '.join(MESH_SUFFIXES)}) "
+            raise ValueError(f"{where}.glob: {pattern!r} matches no mesh file ({', '.join(GLOB_SUFFIXES)}) "
                              f"under {base_dir}")
         picked += hits
     unique = list(dict.fromkeys(picked))

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from PIL import ImageFile
 
 from envcap.core.color import srgb_to_linear
 
@@ -37,7 +38,7 @@ class Surfaces:
     """Triangles of one file, per corner, in the file's coordinates (after any transform the file
     itself gives: glTF nodes, Mitsuba ``to_world``): ``tri`` (T, 3, 3) float64 m, ``albedo`` and
     ``emission`` (T, 3, 3) float32 linear RGB, ``uvl`` (T, 3, 3) float32 (u, v, layer of
-    ``textures``; layer -1: none) or None, ``textures`` (S, S, 4) uint8 images, ``notes``: what
+    ``textures``; layer -1: no texture; u, v NaN: no texture coordinates) or None, ``textures`` (S, S, 4) uint8 images, ``notes``: what
     was read approximately or skipped (one short line each), ``sources``: (name, triangle count)
     of each piece in order (a file, or a Mitsuba shape's file): winding is judged per piece."""
 
@@ -69,7 +70,8 @@ class Surfaces:
 
 
 def _untextured(t: int) -> NDArray[np.float32]:
-    uvl = np.zeros((t, 3, 3), np.float32)
+    """``uvl`` of corners without texture coordinates: (nan, nan, -1)."""
+    uvl = np.full((t, 3, 3), np.nan, np.float32)
     uvl[..., 2] = -1.0
     return uvl
 
@@ -98,15 +100,22 @@ def _material_colors(visual: Any, default_albedo: NDArray[np.float64], emission_
         image = mat.baseColorTexture
         if getattr(mat, "emissiveFactor", None) is not None:
             emission = np.asarray(mat.emissiveFactor, np.float64)[:3] * emission_scale
-    else:                                                     # OBJ SimpleMaterial
+    else:                                                     # OBJ SimpleMaterial (also PLY with UVs)
         kw = getattr(mat, "kwargs", {}) or {}
+        image = getattr(mat, "image", None)
+        # trimesh invents a 2 x 2 grey image and a 0.4 diffuse for texture coordinates without a
+        # texture (PLY u,v; OBJ vt): only an image decoded from a file is the file's, only an MTL
+        # Kd is a colour; otherwise the table's albedo (x 1 under a texture of the file's own).
+        if not isinstance(image, ImageFile.ImageFile):
+            image = None
         if "kd" in kw:
             albedo = np.asarray([float(x) for x in np.ravel(kw["kd"])[:3]])
-        elif getattr(mat, "diffuse", None) is not None:
-            albedo = np.asarray(mat.diffuse, np.float64)[:3] / 255.0
+        elif image is not None:
+            albedo = np.ones(3)
         if "ke" in kw:
             emission = np.asarray([float(x) for x in np.ravel(kw["ke"])[:3]]) * emission_scale
-        image = getattr(mat, "image", None)
+    if not np.all(np.isfinite(albedo)) or not np.all(np.isfinite(emission)):
+        raise ValueError(f"material colours must be finite, got albedo {albedo.tolist()}, emission {emission.tolist()}")
     return np.clip(albedo, 0.0, 1.0), emission, image
 
 
@@ -130,13 +139,13 @@ def geometry_surfaces(m: Any, default_albedo: NDArray[np.float64], emission_scal
         albedo[:] = factor.astype(np.float32)
         emission[:] = emit.astype(np.float32)
         uv = getattr(m.visual, "uv", None)
-        if image is not None and uv is not None and len(uv) == len(v):
+        if uv is not None and len(uv) == len(v):   # coordinates kept even without an image: a bsdf may add one
             uvl = np.empty((t, 3, 3), np.float32)
             uvl[..., :2] = np.asarray(uv, np.float64)[f]
-            uvl[..., 2] = 0.0
+            uvl[..., 2] = 0.0 if image is not None else -1.0
             if not np.all(np.isfinite(uvl)):
                 raise ValueError("texture coordinates contain NaN or Inf")
-            return Surfaces(tri, albedo, emission, uvl, [texture_image(image)])
+            return Surfaces(tri, albedo, emission, uvl, [texture_image(image)] if image is not None else [])
     return Surfaces(tri, albedo, emission)
 
 

@@ -21,12 +21,14 @@ from __future__ import annotations
 import re
 import xml.etree.ElementTree as ET
 from collections import Counter
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
+from envcap.core.color import srgb_to_linear
 from envcap.scene.mesh_surfaces import Surfaces, one_line, read_mesh_surfaces, texture_image
 
 WRAPPERS = ("twosided", "mask", "bumpmap", "normalmap")
@@ -38,6 +40,8 @@ def _numbers(text: str, where: str) -> NDArray[np.float64]:
         vals = np.array([float(x) for x in re.split(r"[,\s]+", text.strip()) if x], np.float64)
     except ValueError:
         raise ValueError(f"{where}: expected numbers, got {text!r}") from None
+    if not vals.size:
+        raise ValueError(f"{where}: expected numbers, got {text!r}")
     if not np.all(np.isfinite(vals)):
         raise ValueError(f"{where}: numbers must be finite, got {text!r}")
     return vals
@@ -47,8 +51,10 @@ def _vec(el: ET.Element, default: float, where: str) -> NDArray[np.float64]:
     """(x, y, z) of a ``translate``/``scale``/``rotate`` element: ``value`` or x/y/z attributes."""
     if "value" in el.attrib:
         v = _numbers(el.attrib["value"], where)
-        return np.repeat(v, 3) if v.size == 1 else v[:3]
-    return np.array([float(el.attrib.get(k, default)) for k in "xyz"])
+        if v.size not in (1, 3):
+            raise ValueError(f"{where}: expected 1 or 3 numbers, got {el.attrib['value']!r}")
+        return np.repeat(v, 3) if v.size == 1 else v
+    return np.array([_numbers(el.attrib.get(k, str(default)), f"{where} {k}")[0] for k in "xyz"])
 
 
 def _rotation(axis: NDArray[np.float64], angle_deg: float) -> NDArray[np.float64]:
@@ -76,7 +82,7 @@ def to_world_matrix(el: ET.Element | None, where: str) -> NDArray[np.float64]:
             axis = _vec(op, 0.0, w)
             if not np.linalg.norm(axis) > 0:
                 raise ValueError(f"{w}: rotation axis is zero")
-            step = _rotation(axis, float(op.attrib.get("angle", 0.0)))
+            step = _rotation(axis, float(_numbers(op.attrib.get("angle", "0"), f"{w} angle")[0]))
         elif op.tag == "matrix":
             vals = _numbers(op.attrib.get("value", ""), w)
             if vals.size not in (9, 16):
@@ -86,6 +92,8 @@ def to_world_matrix(el: ET.Element | None, where: str) -> NDArray[np.float64]:
             else:
                 step = vals.reshape(4, 4)
         elif op.tag == "lookat":
+            if "origin" not in op.attrib or "target" not in op.attrib:
+                raise ValueError(f"{w}: needs 'origin' and 'target'")
             o, t = _numbers(op.attrib["origin"], w), _numbers(op.attrib["target"], w)
             up = _numbers(op.attrib.get("up", "0 1 0"), w)
             d = (t - o) / np.linalg.norm(t - o)
@@ -131,7 +139,8 @@ def _reflectance(bsdf: ET.Element, base: Path, where: str) -> tuple[NDArray[np.f
             v = _numbers(el.attrib.get("value", ""), where)
             return np.clip(np.resize(v, 3), 0.0, 1.0), None, twosided
         if el.tag == "float":
-            return np.clip(np.full(3, float(el.attrib.get("value", "nan"))), 0.0, 1.0), None, twosided
+            return np.clip(np.full(3, _numbers(el.attrib.get("value", ""), f"{where}: <float name=\"{name}\">")[0]),
+                           0.0, 1.0), None, twosided
         if el.tag == "texture" and el.attrib.get("type") == "bitmap":
             fn = el.find("string[@name='filename']")
             if fn is not None:
@@ -139,10 +148,13 @@ def _reflectance(bsdf: ET.Element, base: Path, where: str) -> tuple[NDArray[np.f
     return (np.full(3, 0.5) if bsdf.attrib.get("type") in ("diffuse", "roughdiffuse") else None), None, twosided
 
 
-def read_mitsuba_surfaces(path: Path, default_albedo: NDArray[np.float64], emission_scale: float = 100.0) -> Surfaces:
-    """:class:`Surfaces` of every ply/obj shape of the Mitsuba 3 scene ``path`` (``to_world``
-    applied, materials from the bsdfs), in document order; ``ValueError`` naming the file on a
-    parse error, a missing shape file or a scene without such shapes."""
+def iter_mitsuba_surfaces(path: Path, default_albedo: NDArray[np.float64], emission_scale: float = 100.0,
+                          notes: list[str] | None = None) -> Iterator[Surfaces]:
+    """:class:`Surfaces` of each ply/obj shape of the Mitsuba 3 scene ``path`` in document order
+    (``to_world`` applied, materials from the bsdfs), one at a time (an importer keeps only what
+    it has prepared); what was skipped is appended to ``notes`` once the shapes are exhausted.
+    ``ValueError`` naming the file and the shape on a parse error, a bad attribute, a missing
+    shape file or texture, or a scene without such shapes."""
     try:
         root = ET.parse(path).getroot()
     except (ET.ParseError, OSError) as exc:
@@ -153,7 +165,8 @@ def read_mitsuba_surfaces(path: Path, default_albedo: NDArray[np.float64], emiss
     base = path.parent
     bsdfs = {b.attrib["id"]: b for b in root.findall("bsdf") if "id" in b.attrib}
     skipped: Counter[str] = Counter()
-    parts: list[Surfaces] = []
+    bitmaps: dict[Path, NDArray[np.uint8]] = {}     # one texture per file, however many shapes use it
+    count = 0
     for e in root.findall("emitter"):
         skipped[f"top-level emitter '{e.attrib.get('type', '?')}' (the scene's [sky] lights it)"] += 1
     for i, shape in enumerate(root.findall("shape")):
@@ -163,8 +176,8 @@ def read_mitsuba_surfaces(path: Path, default_albedo: NDArray[np.float64], emiss
             skipped[f"shape type '{kind}'"] += 1
             continue
         fn = shape.find("string[@name='filename']")
-        if fn is None:
-            raise ValueError(f"{where}: no <string name=\"filename\">")
+        if fn is None or "value" not in fn.attrib:
+            raise ValueError(f"{where}: no <string name=\"filename\" value=...>")
         file = base / fn.attrib["value"]
         if not file.is_file():
             raise ValueError(f"{where}: file {file} not found")
@@ -172,39 +185,66 @@ def read_mitsuba_surfaces(path: Path, default_albedo: NDArray[np.float64], emiss
         bsdf = bsdfs.get(ref.attrib.get("id", "")) if ref is not None else shape.find("bsdf")
         if ref is not None and bsdf is None:
             raise ValueError(f"{where}: <ref id=\"{ref.attrib.get('id')}\"> names no top-level bsdf")
+        m4 = to_world_matrix(shape.find("transform[@name='to_world']"), where)
         surf = read_mesh_surfaces(file, default_albedo, emission_scale)
         surf.sources = [(fn.attrib["value"], surf.tri.shape[0])]
-        m4 = to_world_matrix(shape.find("transform[@name='to_world']"), where)
         surf.tri = surf.tri @ m4[:3, :3].T + m4[:3, 3]
-        if np.linalg.det(m4[:3, :3]) < 0:   # a mirroring transform turns the winding
-            surf.tri = surf.tri[:, [0, 2, 1]]
+        if np.linalg.det(m4[:3, :3]) < 0:   # a mirroring transform turns the winding: every corner array
+            surf.tri, surf.albedo, surf.emission = (a[:, [0, 2, 1]] for a in (surf.tri, surf.albedo, surf.emission))
+            if surf.uvl is not None:
+                surf.uvl = surf.uvl[:, [0, 2, 1]]
         if bsdf is not None:
-            rgb, bitmap, twosided = _reflectance(bsdf, base, where)
-            if twosided:
-                skipped["twosided bsdf (lit on the front side, after the winding rule)"] += 1
-            if rgb is None:
-                skipped[f"bsdf type '{bsdf.attrib.get('type')}' without a diffuse colour (table albedo used)"] += 1
-            else:
-                surf.albedo[:] = rgb.astype(np.float32)
-                if bitmap is not None:
-                    if surf.uvl is None:
-                        skipped[f"bitmap texture on a shape without texture coordinates ({file.name})"] += 1
-                    else:
-                        try:
-                            with Image.open(bitmap) as img:
-                                surf.textures = [texture_image(img)]
-                        except OSError as exc:
-                            raise ValueError(f"{where}: cannot read texture {bitmap}: {one_line(exc)}") from None
-                        surf.uvl[..., 2] = np.where(surf.uvl[..., 2] >= 0, 0.0, -1.0)
+            _apply_bsdf(surf, bsdf, base, where, file, skipped, bitmaps)
         emitter = shape.find("emitter[@type='area']")
         if emitter is not None:
             rad = emitter.find("rgb[@name='radiance']")
             if rad is not None:
                 surf.emission[:] = np.resize(_numbers(rad.attrib.get("value", ""), where), 3).astype(np.float32)
-        parts.append(surf)
-    if not parts:
+        count += 1
+        yield surf
+    if not count:
         raise ValueError(f"{path}: no ply or obj shapes to import")
+    if notes is not None:
+        notes += [f"{n} x {what}" for what, n in skipped.items()]
+
+
+def _apply_bsdf(surf: Surfaces, bsdf: ET.Element, base: Path, where: str, file: Path, skipped: Counter[str],
+                bitmaps: dict[Path, NDArray[np.uint8]]) -> None:
+    """The bsdf's colour (and bitmap texture, on the shape's own texture coordinates) into ``surf``."""
+    rgb, bitmap, twosided = _reflectance(bsdf, base, where)
+    if twosided:
+        skipped["twosided bsdf (lit on the front side, after the winding rule)"] += 1
+    if rgb is None:
+        skipped[f"bsdf type '{bsdf.attrib.get('type')}' without a diffuse colour (table albedo used)"] += 1
+        return
+    if bitmap is None:
+        surf.albedo[:] = rgb.astype(np.float32)
+        return
+    if bitmap not in bitmaps:
+        try:
+            with Image.open(bitmap) as img:
+                bitmaps[bitmap] = texture_image(img)
+        except OSError as exc:
+            raise ValueError(f"{where}: cannot read texture {bitmap}: {one_line(exc)}") from None
+    texture = bitmaps[bitmap]
+    mean = srgb_to_linear(texture[..., :3].reshape(-1, 3).mean(axis=0) / 255.0).astype(np.float32)
+    if surf.uvl is None:
+        skipped[f"bitmap texture on parts without texture coordinates (their mean colour used; {file.name})"] += 1
+        surf.albedo[:] = mean
+        return
+    textured = np.isfinite(surf.uvl[..., 0])                          # corners with texture coordinates
+    if not textured.all():
+        skipped[f"bitmap texture on parts without texture coordinates (their mean colour used; {file.name})"] += 1
+    surf.albedo[:] = np.where(textured[..., None], np.float32(1.0), mean)
+    surf.textures = [texture]
+    surf.uvl[..., 2] = np.where(textured, 0.0, -1.0)
+
+
+def read_mitsuba_surfaces(path: Path, default_albedo: NDArray[np.float64], emission_scale: float = 100.0) -> Surfaces:
+    """Every shape of :func:`iter_mitsuba_surfaces` joined into one :class:`Surfaces` (notes included)."""
+    notes: list[str] = []
+    parts = list(iter_mitsuba_surfaces(path, default_albedo, emission_scale, notes))
     joined = Surfaces.join(parts)
     joined.sources = [src for p in parts for src in p.sources]
-    joined.notes = [f"{n} x {what}" for what, n in skipped.items()]
+    joined.notes = notes
     return joined

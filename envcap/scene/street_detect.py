@@ -22,8 +22,8 @@ world frame (meters, +Y up; plan angles ``atan2(dz, dx)`` in degrees):
 5. **Intersections**: two streets whose centre lines cross within both extents meet there; each
    street records the crossing distances and the intersections their centre points.
 
-Frontage share: the fraction of the extent where that side's facade is present.  Heights: wall
-top minus the lowest wall vertex of that facade line (m).
+Frontage share: the fraction of the extent where that side's facade is present.  Heights: per
+side, the median over 1 m samples along the paired facade lines of the wall height there (m).
 """
 
 from __future__ import annotations
@@ -64,7 +64,9 @@ class DetectedStreet:
     p1 in [0, 180); ``facade_offsets``: signed offsets (m) of its two facade lines from the centre
     line along the plan normal ``(-sin a, cos a)`` (first negative); ``frontage``: share of the
     extent with a facade on each side; ``heights``: median building height on each side (m);
-    ``crossings``: distances from p0 (m) where other streets' centre lines cross it."""
+    ``crossings``: distances from p0 (m) where other streets' centre lines cross it;
+    ``segments``: the street split at its crossings, ``(start, end)`` distances from p0 (m) of
+    each stretch between the crossing streets' facades (the whole street when it crosses none)."""
 
     name: str
     p0: tuple[float, float]
@@ -74,6 +76,7 @@ class DetectedStreet:
     frontage: tuple[float, float]
     heights: tuple[float, float]
     crossings: tuple[float, ...]
+    segments: tuple[tuple[float, float], ...] = ()
 
     @property
     def width(self) -> float:
@@ -161,10 +164,26 @@ def facade_lines(walls: NDArray[np.float64], angles_deg: NDArray[np.float64], ar
         order = np.argsort(v)
         groups = np.split(order, np.nonzero(np.diff(v[order]) > 0.3)[0] + 1)
         for g in groups:
-            iv = _merge(np.stack([u[g].min(axis=1), u[g].max(axis=1)], axis=1), 0.05)
+            u_lo, u_hi = u[g].min(axis=1), u[g].max(axis=1)
+            iv = _merge(np.stack([u_lo, u_hi], axis=1), 0.05)
             lines.append(FacadeLine(facing, float(np.average(v[g], weights=w[g])), iv,
-                                    float(heights[g].max() - heights[g].min())))
+                                    _median_height(u_lo, u_hi, heights[g].min(axis=1), heights[g].max(axis=1))))
     return lines
+
+
+def _median_height(u_lo: NDArray[np.float64], u_hi: NDArray[np.float64], y_lo: NDArray[np.float64],
+                   y_hi: NDArray[np.float64], step: float = 1.0) -> float:
+    """Median over samples every ``step`` m along a facade line of the wall height there (top of
+    the walls covering the sample minus their bottom): one building's height per stretch of it,
+    not the whole line's range (which a slope or a tall neighbour would inflate)."""
+    samples = np.arange(u_lo.min(), u_hi.max(), step) + 0.5 * step
+    cover = (samples[:, None] >= u_lo[None, :]) & (samples[:, None] <= u_hi[None, :])
+    seen = cover.any(axis=1)
+    if not seen.any():
+        return float(y_hi.max() - y_lo.min())
+    top = np.where(cover, y_hi[None, :], -np.inf).max(axis=1)[seen]
+    bottom = np.where(cover, y_lo[None, :], np.inf).min(axis=1)[seen]
+    return float(np.median(top - bottom))
 
 
 def _covers(line: FacadeLine, u: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -274,8 +293,12 @@ def detect_streets(triangles: NDArray[np.float64], search: StreetSearch | None =
              for i, s in enumerate(streets)]
     out = []
     for s in named:
-        crossings = sorted(d for o in named if o is not s and (d := _crossing(s, o)) is not None)
-        out.append(DetectedStreet(s.name, s.p0, s.p1, s.angle_deg, s.facade_offsets, s.frontage, s.heights, tuple(crossings)))
+        hits = sorted((d, o.width) for o in named if o is not s and (d := _crossing(s, o)) is not None)
+        cuts = [(0.0, 0.0)] + [(d - w / 2.0, d + w / 2.0) for d, w in hits] + [(s.length, s.length)]
+        segments = tuple((max(a[1], 0.0), min(b[0], s.length)) for a, b in zip(cuts[:-1], cuts[1:])
+                         if min(b[0], s.length) - max(a[1], 0.0) >= 1.0)
+        out.append(DetectedStreet(s.name, s.p0, s.p1, s.angle_deg, s.facade_offsets, s.frontage, s.heights,
+                                  tuple(d for d, _ in hits), segments))
     return out
 
 

@@ -114,3 +114,64 @@ def test_crop_by_triangle_clips_terrain_and_by_part_keeps_it_whole(tmp_path: Pat
     assert whole.triangle_count == 200
     with pytest.raises(ValueError, match="crop_by"):
         import_meshes([tmp_path / "terrain.ply"], crop=box, crop_by="tile")
+
+
+def _uv_triangle_ply(path: Path) -> None:
+    """The unit triangle with texture coordinates (0,0) (1,0) (0,1) and no texture."""
+    visual = trimesh.visual.TextureVisuals(uv=np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
+    mesh = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], visual=visual, process=False)
+    path.write_bytes(trimesh.exchange.ply.export_ply(mesh))
+
+
+def test_texture_coordinates_without_a_texture_keep_the_table_albedo(tmp_path: Path) -> None:
+    _uv_triangle_ply(tmp_path / "uv.ply")             # trimesh invents a grey 2x2 image for it
+    mesh, _ = import_meshes([tmp_path / "uv.ply"], albedo=(0.3, 0.3, 0.3))
+    assert not mesh.textured
+    np.testing.assert_allclose(mesh.albedo[0], [0.3, 0.3, 0.3], atol=1e-7)
+
+
+def test_mitsuba_bitmaps_mirrors_and_shared_textures(tmp_path: Path) -> None:
+    from PIL import Image
+
+    _uv_triangle_ply(tmp_path / "uv.ply")
+    _unit_triangle_ply(tmp_path / "tri.ply")
+    Image.new("RGB", (8, 8), (188, 188, 188)).save(tmp_path / "wall.png")      # sRGB 188 -> 0.5029 linear
+    (tmp_path / "s.xml").write_text("""<scene version="3.0.0">
+      <bsdf type="diffuse" id="tex"><texture type="bitmap" name="reflectance">
+        <string name="filename" value="wall.png"/></texture></bsdf>
+      <shape type="ply"><string name="filename" value="uv.ply"/><ref id="tex"/></shape>
+      <shape type="ply"><string name="filename" value="uv.ply"/><ref id="tex"/>
+        <transform name="to_world"><scale x="-1"/></transform></shape>
+      <shape type="ply"><string name="filename" value="tri.ply"/><ref id="tex"/></shape>
+    </scene>""")
+    mesh, report = import_meshes([tmp_path / "s.xml"], winding="keep")
+    assert mesh.textures.shape[0] == 1                                  # one layer for the shared bitmap
+    uvl = mesh.uv_layer.reshape(-1, 3, 3)
+    world = (mesh.positions.astype(np.float64) + mesh.origin).reshape(-1, 3, 3)
+    for t in (0, 1):                                                    # uv follows its corner through the mirror
+        for corner, uv in zip(world[t], uvl[t]):
+            np.testing.assert_allclose(uv[:2], [abs(corner[0]), corner[1]], atol=1e-6)
+    np.testing.assert_allclose(mesh.albedo.reshape(-1, 3, 3)[2, 0], [0.5029] * 3, atol=2e-3)   # no UVs: the mean
+    assert uvl[2, 0, 2] == -1 and "without texture coordinates" in " ".join(report.notes)
+
+
+@pytest.mark.parametrize("element, message", [
+    ("<transform name='to_world'><lookat target='0 0 1'/></transform>", "needs 'origin' and 'target'"),
+    ("<transform name='to_world'><translate x='nan'/></transform>", "must be finite"),
+    ("<transform name='to_world'><rotate y='1' angle='ninety'/></transform>", "angle: expected numbers"),
+    ("<bsdf type='diffuse'><float name='reflectance'/></bsdf>", "reflectance.*expected numbers"),
+])
+def test_bad_mitsuba_attributes_name_the_shape(tmp_path: Path, element: str, message: str) -> None:
+    _unit_triangle_ply(tmp_path / "tri.ply")
+    (tmp_path / "bad.xml").write_text(f"<scene><shape type='ply'><string name='filename' value='tri.ply'/>{element}"
+                                      "</shape></scene>")
+    with pytest.raises(ValueError, match=f"bad.xml: shape 0 \\(ply\\).*{message}"):
+        import_meshes([tmp_path / "bad.xml"])
+
+
+def test_a_glob_does_not_take_a_mitsuba_xml(tmp_path: Path) -> None:
+    _unit_triangle_ply(tmp_path / "tri.ply")
+    (tmp_path / "scene.xml").write_text("<scene><shape type='ply'><string name='filename' value='tri.ply'/></shape></scene>")
+    doc = {"name": "g", "effects": [], "sky": {"type": "uniform", "radiance": 1.0}, "ground": {"enabled": False},
+           "mesh": {"glob": "*"}}
+    assert scene_from_dict(doc, base_dir=tmp_path).mesh.triangle_count == 1     # not twice

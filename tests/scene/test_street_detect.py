@@ -114,3 +114,20 @@ def test_envcap_streets_writes_a_scene_a_map_and_json(tmp_path: Path, capsys: py
     assert (out / "streets_map.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(["streets", "no_such_scene", "--out", str(tmp_path / "x")]) == 2
     assert capsys.readouterr().err.startswith("envcap: error:") and not (tmp_path / "x").exists()
+
+
+def test_heights_and_segments_of_the_generated_city(city_triangles: tuple[np.ndarray, dict]) -> None:
+    tri, truth = city_triangles
+    lo, hi = truth["spec"]["height_range"]
+    found = detect_streets(tri)
+    for s in found:
+        # buildings stand 1 m below the terrain: every side's median height is a building's height + 1
+        assert all(lo + 1.0 <= h <= hi + 1.0 for h in s.heights), (s.name, s.heights)
+        t = next(t for t in truth["streets"] if _match(t, [s]) is s)
+        widths = [o["width"] for o in truth["streets"] if o["name"] != t["name"] and o["district"] == "grid"
+                  and abs((o["angle_deg"] - t["angle_deg"]) % 180 - 90) < 1]
+        if t["district"] == "grid":     # split at each crossing: one stretch more than crossings
+            assert len(s.segments) == len(t["intersections"]) + 1 == len(widths) + 1
+            assert sum(b - a for a, b in s.segments) == pytest.approx(s.length - sum(widths), abs=2.0)
+        else:
+            assert s.segments == ((0.0, s.length),)
