@@ -27,6 +27,45 @@ float envcap_z_of_w(float w, float xk[ENVCAP_MAX_LEVELS], int n)
     return float(n - 1);
 }
 
+// Rung ladders (docs/lobes.md, "Ladder modes"; numpy twin envcap.runtime.rungs): a mip-mapped
+// cube-map array holding `per_level` rungs per level, layer base + r at level j = rung j*per_level + r.
+// ENVCAP_PROBES_SAMPLER and ENVCAP_PROBES_LOD: the probe texture of the target
+#include "runtime/envcap_probe_texture.glsl"
+#ifndef ENVCAP_MAX_RUNGS
+#define ENVCAP_MAX_RUNGS 48
+#endif
+
+// Continuous rung position of power w: the z(w) rule over the flat rung table `xr` (xr[i] =
+// log2(1 + powers[i]), strictly decreasing, n entries); clamped to [0, n - 1]; w < 0, NaN -> 0.
+float envcap_rung_of_w(float w, float xr[ENVCAP_MAX_RUNGS], int n)
+{
+    n = clamp(n, 1, ENVCAP_MAX_RUNGS);
+    float x = log2(1.0 + (w > 0.0 ? w : 0.0));
+    if (!(x < xr[0])) return 0.0;
+    for (int k = 1; k < n; ++k) {
+        if (x >= xr[k]) return float(k - 1) + (xr[k - 1] - x) / (xr[k - 1] - xr[k]);
+    }
+    return float(n - 1);
+}
+
+// The cos^w-convolved texel along d of the probe whose rungs start at layer `base`: rungs
+// floor(u) and the next, each one bilinear fetch at its integer level, blended linearly in u
+// (two bilinear fetches: the texel reads of one trilinear fetch; one where u is a whole rung).
+vec4 envcap_rung_fetch(ENVCAP_PROBES_SAMPLER tex, vec3 d, float base, float w, float xr[ENVCAP_MAX_RUNGS],
+                       int n, int per_level)
+{
+    per_level = max(per_level, 1);
+    n = clamp(n, 1, ENVCAP_MAX_RUNGS);
+    float u = envcap_rung_of_w(w, xr, n);
+    int i0 = int(floor(u));
+    int i1 = min(i0 + 1, n - 1);
+    float t = u - float(i0);
+    vec4 a = ENVCAP_PROBES_LOD(tex, d, base + float(i0 % per_level), float(i0 / per_level));
+    if (!(t > 0.0)) return a;
+    vec4 b = ENVCAP_PROBES_LOD(tex, d, base + float(i1 % per_level), float(i1 / per_level));
+    return a + t * (b - a);
+}
+
 // One specular lobe of a Lafortune BRDF, term rho_s * max(u . Cv, 0)^w with
 // Cv = (C.x v.x, C.y v.y, C.z v.z), for view direction v (unit, toward the viewer) in the local
 // shading frame (z = normal).  Returns vec4(c, weight): c = Cv / |Cv| (unit lobe axis, local

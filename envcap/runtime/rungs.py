@@ -1,0 +1,129 @@
+"""Lookup of a rung ladder (numpy twin of ``envcap_rung_of_w`` / ``envcap_rung_fetch`` in
+``shaders/runtime/envcap_lobes.glsl``): the cos^w-convolved environment of one probe from a
+mip-mapped cube-map array holding ``R`` rungs per level (:mod:`envcap.core.rungs`).
+
+Layer ``base + r`` at level ``j`` holds rung ``i = j R + r``.  A lookup of power ``w`` takes the
+continuous rung position ``u`` (piecewise linear in ``log2(1 + w)`` over the rung table ``xr``,
+clamped to ``[0, n - 1]``; ``w < 0`` and NaN count as 0, ``+inf`` gives 0, as in GLSL) and blends
+rungs ``i0 = floor(u)`` and ``i0 + 1`` linearly in ``u``, each one seamless bilinear fetch at
+its integer level (:mod:`envcap.core.cube_sampling`).  Float64; ``dtype=np.float32`` evaluates
+``u`` in float32 in the GLSL order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from envcap.core import cube_sampling
+from envcap.core.rungs import RungLadder, rung_ladder
+from envcap.prefilter.rungs import prefilter_rungs
+from envcap.probeset.probe_set import ProbeSet
+
+__all__ = ["MAX_RUNGS", "RungChains", "rung_table", "rung_position", "rung_fetch", "rung_chains_of"]
+
+MAX_RUNGS = 48
+"""Most rungs of a rung table (length of the GLSL ``xr`` array).  GLSL ``#define ENVCAP_MAX_RUNGS``."""
+
+
+def rung_table(powers: ArrayLike, dtype: Any = np.float64) -> NDArray:
+    """``xr_i = log2(1 + powers[i])`` for the GLSL uniform ``xr`` (computed in float64); ``powers``
+    strictly decreasing, finite, >= 0, at most :data:`MAX_RUNGS` long (else ``ValueError``)."""
+    p = np.asarray(powers, dtype=np.float64)
+    if p.ndim != 1 or not 1 <= p.size <= MAX_RUNGS:
+        raise ValueError(f"rung powers must be a 1-D table of 1..{MAX_RUNGS} values, got shape {p.shape}")
+    if not np.all(np.isfinite(p)) or np.any(p < 0) or np.any(np.diff(p) >= 0):
+        raise ValueError(f"rung powers must be finite, >= 0 and strictly decreasing, got {p.tolist()}")
+    return np.log2(1.0 + p).astype(dtype)
+
+
+def rung_position(w: ArrayLike, xr: ArrayLike, dtype: Any = np.float64) -> NDArray:
+    """Continuous rung position of power(s) ``w`` on the table ``xr`` (the GLSL loop; never raises)."""
+    xr = np.asarray(xr, dtype=dtype)
+    w = np.asarray(w, dtype=dtype)
+    n = xr.size
+    with np.errstate(invalid="ignore", over="ignore"):
+        x = np.log2(dtype(1.0) + np.where(w > 0, w, dtype(0.0)))
+    u = np.full(x.shape, dtype(n - 1), dtype=dtype)
+    done = ~(x < xr[0])
+    u[done] = 0.0
+    for k in range(1, n):
+        m = ~done & (x >= xr[k])
+        u[m] = dtype(k - 1) + (xr[k - 1] - x[m]) / (xr[k - 1] - xr[k])
+        done |= m
+    return u
+
+
+def rung_fetch(levels: Sequence[ArrayLike], d: ArrayLike, base: ArrayLike, w: ArrayLike, xr: ArrayLike,
+               per_level: int) -> NDArray[np.float64]:
+    """``(..., C)``: rungs ``floor(u)`` and the next of the cube-map array ``levels`` (``[j]``:
+    ``(layers, 6, N_j, N_j, C)``) along unit ``d`` ``(..., 3)`` at layers ``base + i % per_level``,
+    levels ``i // per_level``, blended linearly in ``u = rung_position(w, xr)``."""
+    if int(per_level) < 1:
+        raise ValueError(f"per_level must be >= 1, got {per_level}")
+    r = int(per_level)
+    d = np.asarray(d, dtype=np.float64)
+    shape = d.shape[:-1]
+    n = np.asarray(xr).size
+    if len(levels) * r < n:
+        raise ValueError(f"{len(levels)} levels x {r} rungs hold fewer than the table's {n} rungs")
+    u = np.broadcast_to(rung_position(w, xr), shape)
+    b = np.broadcast_to(np.asarray(base, dtype=np.float64), shape)
+    i0 = np.floor(u).astype(np.int64)
+    i1 = np.minimum(i0 + 1, n - 1)
+    t = (u - i0)[..., None]
+    a = cube_sampling.sample_cube_array(levels, d, b + (i0 % r), (i0 // r).astype(np.float64))
+    c = cube_sampling.sample_cube_array(levels, d, b + (i1 % r), (i1 // r).astype(np.float64))
+    return np.where(t > 0, a + t * (c - a), a)
+
+
+@dataclass(frozen=True)
+class RungChains:
+    """Rung-ladder textures of ``P`` probes: ``levels[j]`` ``(P R, 6, N_j, N_j, C)`` (layer
+    ``p R + r``), the ladder, and its table ``xr``.  Every texel finite (checked when built)."""
+
+    levels: Sequence[NDArray]
+    ladder: RungLadder
+
+    def __post_init__(self) -> None:
+        lv = [np.asarray(a) for a in self.levels]
+        object.__setattr__(self, "levels", lv)
+        if len(lv) != self.ladder.levels:
+            raise ValueError(f"rung chains need {self.ladder.levels} levels, got {len(lv)}")
+        for j, a in enumerate(lv):
+            s = self.ladder.sizes[j]
+            if a.ndim != 5 or a.shape[1:4] != (6, s, s) or a.shape[0] % self.ladder.per_level or a.shape[0] != lv[0].shape[0]:
+                raise ValueError(f"rung level {j} must be (P*{self.ladder.per_level}, 6, {s}, {s}, C), got {a.shape}")
+            if a.dtype.kind == "f" and not np.isfinite(a).all():
+                raise ValueError(f"rung level {j}: {int((~np.isfinite(a)).sum())} texel values are NaN/Inf")
+
+    @property
+    def xr(self) -> NDArray[np.float64]:
+        return rung_table(self.ladder.powers)
+
+    def fetch(self, d: ArrayLike, probe: ArrayLike, w: ArrayLike) -> NDArray[np.float64]:
+        """``(..., C)`` of probe index ``probe`` along unit ``d`` for lobe power ``w``."""
+        base = np.asarray(probe, dtype=np.float64) * self.ladder.per_level
+        return rung_fetch(self.levels, d, base, w, self.xr, self.ladder.per_level)
+
+
+def rung_chains_of(probe_set: ProbeSet, mode: str = "half_octave", quality: str = "default",
+                   ctx: Any = None, sky_alpha: bool = True) -> tuple[RungChains, RungChains]:
+    """``(probes, sky)``: the rung textures of ``probe_set``'s captures (its level 0) and of its sky
+    map (level 0), filtered with :func:`envcap.prefilter.rungs.prefilter_rungs` on
+    ``rung_ladder(N, mode)`` (the sky as one probe: rungs at layers 0..R-1).  ``sky_alpha``: the
+    probes' filtered alpha sky-weighted for the set's sky map (the composite after filtering is
+    then exact for it, :func:`envcap.prefilter.rungs.sky_weighted_alpha`).  The sky map must have
+    the probes' face size."""
+    n = probe_set.resolution
+    lad = rung_ladder(n, mode)
+    sky0 = np.asarray(probe_set.sky_levels[0], np.float64)
+    if sky0.shape[1] != n:
+        raise ValueError(f"sky map has {sky0.shape[1]}-texel faces, the probes {n}: rung ladders need one size")
+    probes = prefilter_rungs(np.asarray(probe_set.levels[0], np.float64), lad, quality=quality, ctx=ctx,  # type: ignore[arg-type]
+                             sky=sky0 if sky_alpha else None)
+    sky = prefilter_rungs(sky0, lad, quality=quality, ctx=ctx)  # type: ignore[arg-type]
+    return RungChains(probes, lad), RungChains(sky, lad)
