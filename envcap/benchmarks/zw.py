@@ -1,23 +1,29 @@
-"""z(w) lookup error: envcap's lobe ladder vs McGuire et al. 2013 box mips vs a cmft-style ladder.
+"""z(w) lookup error of the ladder modes (paper's chain vs rung ladders), McGuire et al. 2013 box
+mips and a cmft-style ladder; Eq. 3 shading from each mode; the composite-after-filtering error.
 
-For cosine powers ``w`` log-spaced in [1, 1e4], each method builds its chain the way it is meant
-to be built and is looked up at its own continuous level for ``w`` (GL-style trilinear between
-the two nearest levels, seamless bilinear within a level: :func:`envcap.core.cube_sampling.sample_cube`);
-the error is against the exact normalized ``cos^w`` convolution
-(:func:`envcap.prefilter.exact.convolve_exact_dirs`) at random uniform directions:
+For cosine powers ``w`` log-spaced in [1, 1e4] (a log-uniform sample of the range), each method
+builds its chain the way it is meant to be built and is looked up at its own continuous level for
+``w`` (GL-style trilinear, seamless bilinear: :func:`envcap.core.cube_sampling.sample_cube`; a
+rung ladder blends its two rungs: :func:`envcap.runtime.rungs.rung_fetch`); the error is against
+the exact normalized ``cos^w`` convolution (:func:`envcap.prefilter.exact.convolve_exact_dirs`)
+at random uniform directions (relative RMSE of luminance):
 
-* ``envcap``: :func:`envcap.core.lobes.lobe_ladder` + :func:`envcap.prefilter.fast.prefilter_chain`,
-  level ``z(w)`` from the ladder table;
-* ``envcap_sigma1``: the same with ``lobe_ladder(N, sigma_texels=1)`` (each level's lobe spans
-  one texel RMS instead of half a texel);
-* ``mcguire2013``: solid-angle box mips, ``m = log2(N sqrt 3) - 0.5 log2(w + 1)``;
-* ``cmft``: level ``k`` holds an (exactly filtered) ``cos^w_k`` lobe with
-  ``w_k = 2^(scale g_k + bias)``, ``g_k = 1 - k / (L - 1)``, cmft's defaults ``scale = 10``,
-  ``bias = 1``; lookup ``g = (log2 w - bias) / scale``, level ``(1 - g)(L - 1)``.
+* ``paper``: :func:`envcap.core.lobes.lobe_ladder` + :func:`envcap.prefilter.fast.prefilter_chain`
+  (the bake's default, "before"); ``half_octave``, ``octave``: :func:`envcap.core.rungs.rung_ladder`
+  + :func:`envcap.prefilter.rungs.prefilter_rungs` ("after");
+* ``paper_sigma1``: ``lobe_ladder(N, sigma_texels=1)``; ``mcguire2013``: solid-angle box mips,
+  ``m = log2(N sqrt 3) - 0.5 log2(w + 1)``; ``cmft``: exact ``cos^w_k`` levels,
+  ``w_k = 2^(10 g_k + 1)``, ``g_k = 1 - k / (L - 1)``.
 
-Error: relative RMSE of luminance over the directions (uniform on the sphere, so solid-angle
-weighted).  Inputs: a captured ``canyon`` probe at (0, 2, 0) composited over its sky, and the
-Preetham sky with its sun (:mod:`envcap.benchmarks.inputs`).
+Inputs (one capture of the ``canyon`` probe at (0, 2, 0), the probe's own position: no
+parallax): ``street`` (composited over the sky without its sun, as a bake stores it; the sun is
+behind a facade from there, so with the sun it is the same cube), ``sky`` (no sun) and ``sky_sun``.
+
+Also: Eq. 3 (:func:`envcap.evaluate.shading.shade`, three materials, the evaluator's frames) lit
+by each mode's lookups of ``street`` against the exact lobe integrals (relative RMS error over the
+frames); and ``composite``: ``filter(alpha sky) - filter(alpha) filter(sky)`` per ``w`` (the
+runtime composites after filtering; sky without its sun), relative to the composited truth and to
+the sky term ``filter((1 - alpha) sky)``.  Derivations and the tables: ``docs/lobes.md``.
 """
 
 from __future__ import annotations
@@ -26,23 +32,37 @@ import argparse
 import json
 import math
 import time
+from dataclasses import replace
+from typing import Any, Callable
 
 import numpy as np
+from numpy.typing import NDArray
 
-from envcap.benchmarks.inputs import real_inputs
+from envcap.capture.renderer import CubeCapture
 from envcap.core.color import luminance
 from envcap.core.cube_sampling import sample_cube
 from envcap.core.lobes import lobe_ladder
+from envcap.core.rungs import ladder_bytes_per_probe, rung_ladder
+from envcap.evaluate.shading import MATERIALS, exact_environment, shade, shading_frames
 from envcap.gpu.context import create_context
 from envcap.outputs import atomic_output_dir
 from envcap.prefilter import convolve_exact_dirs, omega_box_pyramid, prefilter_chain, prefilter_level
+from envcap.prefilter.rungs import prefilter_rungs
+from envcap.runtime.rungs import RungChains
+from envcap.scene import load_scene
+
+Lookup = Callable[[NDArray[np.float64], NDArray[np.float64]], NDArray[np.float64]]
+"""``lookup(dirs (M, 3), w (M,)) -> (M, C)``: a method's cos^w-convolved environment."""
+
+MODES = ("paper", "half_octave", "octave")
+COMPARE = ("paper_sigma1", "mcguire2013", "cmft")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output directory (JSON + PNG)")
     p.add_argument("--size", type=int, default=64, help="face size of the inputs (default 64)")
     p.add_argument("--dirs", type=int, default=1024, help="random directions per w (default 1024)")
-    p.add_argument("--powers", type=int, default=17, help="number of log-spaced w in [1, 1e4] (default 17)")
+    p.add_argument("--powers", type=int, default=33, help="number of log-spaced w in [1, 1e4] (default 33)")
 
 
 def mcguire_level(w: np.ndarray, n: int, levels: int) -> np.ndarray:
@@ -60,56 +80,196 @@ def cmft_level(w: np.ndarray, levels: int, scale: float = 10.0, bias: float = 1.
     return np.clip((1.0 - g) * (levels - 1), 0, levels - 1)
 
 
+def zw_inputs(n: int, ctx: Any) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.float64], NDArray[np.float64]]:
+    """``(inputs, capture, sky)``: the three input cubes ``(6, n, n, 4)`` float64 (module docstring),
+    the canyon capture at (0, 2, 0) (premultiplied RGBA) and the sky without its sun (alpha 1)."""
+    scene = load_scene("canyon")
+    sky = scene.sky.build()
+
+    def rgba(include_sun: bool) -> NDArray[np.float64]:
+        rgb = np.asarray(sky.cube(n, include_sun=include_sun), np.float64)
+        return np.concatenate([rgb, np.ones(rgb.shape[:-1] + (1,))], -1)
+
+    sky0, sky1 = rgba(False), rgba(True)
+    cap = CubeCapture.from_scene(scene, n, sky=sky, ctx=ctx)
+    try:
+        street = np.asarray(cap.capture((0.0, 2.0, 0.0)).rgba, np.float64)
+    finally:
+        cap.release()
+
+    def over(s: NDArray[np.float64]) -> NDArray[np.float64]:
+        env = street + (1.0 - street[..., 3:4]) * s
+        env[..., 3] = street[..., 3]
+        return env
+
+    return {"street": over(sky0), "sky": sky0, "sky_sun": sky1}, street, sky0
+
+
+def other_sky(n: int) -> NDArray[np.float64]:
+    """The canyon's Preetham sky at another time (sun at 15 deg elevation, azimuth 250 deg, turbidity
+    5), without its sun, ``(6, n, n, 4)`` float64: a sky change after the bake."""
+    spec = load_scene("canyon").sky
+    params = replace(spec.params, sun_elevation_deg=15.0, sun_azimuth_deg=250.0, turbidity=5.0)
+    rgb = np.asarray(replace(spec, params=params).build().cube(n, include_sun=False), np.float64)
+    return np.concatenate([rgb, np.ones(rgb.shape[:-1] + (1,))], -1)
+
+
+def _lookups(env: NDArray[np.float64], n: int, ctx: Any, compare: bool) -> dict[str, Lookup]:
+    lad = lobe_ladder(n)
+
+    def chain_lookup(chain: list, level_fn: Callable[[NDArray], NDArray]) -> Lookup:
+        return lambda d, w: sample_cube(chain, d, level_fn(w))
+
+    out: dict[str, Lookup] = {"paper": chain_lookup(prefilter_chain(env, lad, ctx=ctx, progress=False), lad.z)}
+    for mode in ("half_octave", "octave"):
+        rl = rung_ladder(n, mode)
+        rc = RungChains(prefilter_rungs(env, rl, ctx=ctx, progress=False), rl)
+        out[mode] = lambda d, w, rc=rc: rc.fetch(d, 0.0, w)
+    if compare:
+        lad1 = lobe_ladder(n, sigma_texels=1.0)
+        levels = lad.levels
+        out["paper_sigma1"] = chain_lookup(prefilter_chain(env, lad1, ctx=ctx, progress=False), lad1.z)
+        out["mcguire2013"] = chain_lookup(omega_box_pyramid(env, levels), lambda w: mcguire_level(w, n, levels))
+        cm = [prefilter_level(env, wk, lad.sizes[k], ctx=ctx) for k, wk in enumerate(cmft_powers(levels))]
+        out["cmft"] = chain_lookup(cm, lambda w: cmft_level(w, levels))
+    return out
+
+
+def _rel(pred: NDArray, truth: NDArray) -> float:
+    return float(np.sqrt(np.mean((pred - truth) ** 2) / np.mean(truth ** 2)))
+
+
+def summary(ws: NDArray[np.float64], errs: list[float]) -> dict[str, float]:
+    """Median and p95 over the (log-uniform) w grid, and the largest error at ``w <= 16`` (the floor)."""
+    e = np.asarray(errs)
+    return {"median": float(np.median(e)), "p95": float(np.percentile(e, 95)), "max": float(e.max()),
+            "floor_w_le_16": float(e[ws <= 16.0].max())}
+
+
+def random_frames(count: int, seed: int = 1) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``count`` shading frames ``(F, 3, 3)`` (rows T, B, N) with uniform random normals and local
+    views ``(F, 3)`` at polar angles uniform in [0, 80] degrees (the evaluator's frames have
+    axis-aligned normals only: face centres, where a 1^2 level is exact)."""
+    rng = np.random.default_rng(seed)
+    nrm = rng.normal(size=(count, 3))
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    helper = np.where(np.abs(nrm[:, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]])
+    t = np.cross(helper, nrm)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    th, ph = np.radians(rng.uniform(0, 80, count)), rng.uniform(0, 2 * np.pi, count)
+    views = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
+    return np.stack([t, np.cross(nrm, t), nrm], 1), views
+
+
+def shading_errors(env: NDArray[np.float64], lookups: dict[str, Lookup]) -> dict[str, dict[str, float]]:
+    """Relative RMS error of Eq. 3 luminance per mode and material (keys ``material``: the
+    evaluator's frames; ``material_random``: 64 random frames, :func:`random_frames`)."""
+    sets = {"": shading_frames(0), "_random": random_frames(64)}
+    truth_env = exact_environment(env[..., :3])
+    out: dict[str, dict[str, float]] = {}
+    for mode, look in lookups.items():
+        def lit(d: NDArray, w: NDArray, look: Lookup = look) -> NDArray:
+            return look(d.reshape(-1, 3), np.ravel(np.broadcast_to(w, d.shape[:-1])))[:, :3].reshape(d.shape)
+        out[mode] = {}
+        for suffix, (frames, views) in sets.items():
+            for mat in MATERIALS:
+                lt = luminance(shade(truth_env, mat, frames, views))
+                lp = luminance(shade(lit, mat, frames, views))
+                out[mode][mat.name + suffix] = _rel(lp, lt)
+    return out
+
+
+def composite_errors(capture: NDArray[np.float64], sky: NDArray[np.float64], sky2: NDArray[np.float64],
+                     ws: NDArray[np.float64], dirs: NDArray[np.float64], ctx: Any) -> dict[str, list[float]]:
+    """Per ``w``, luminance, relative RMS of the composited truth ``T = filter(street + (1 - alpha) sky)``:
+
+    * ``exact``: the runtime's composite ``street_w + (1 - alpha_w) sky_w`` with exact filters, i.e.
+      ``filter(alpha sky) - filter(alpha) filter(sky)`` over ``T`` (``exact_of_sky_term``: over the
+      sky term ``filter((1 - alpha) sky)`` instead);
+    * ``half_octave``: the same composite from half-octave rung lookups;
+    * ``half_octave_sky_alpha``: with the rungs' alpha sky-weighted for ``sky``
+      (:func:`envcap.prefilter.rungs.sky_weighted_alpha`);
+    * ``*_sky2``: the runtime lit by another sky ``sky2`` (same bake: plain or ``sky``-weighted alpha)
+      against ``filter(street + (1 - alpha) sky2)``.
+    """
+    a = capture[..., 3:4]
+    lad = rung_ladder(capture.shape[1], "half_octave")
+    st_r, sta_r, sky_r, sky2_r = (RungChains(prefilter_rungs(c, lad, ctx=ctx, sky=k), lad)
+                                  for c, k in ((capture, None), (capture, sky), (sky, None), (sky2, None)))
+    keys = ("exact", "exact_of_sky_term", "half_octave", "half_octave_sky_alpha", "half_octave_sky2",
+            "half_octave_sky_alpha_sky2")
+    rows: dict[str, list[float]] = {k: [] for k in keys}
+    for w in ws:
+        f_st = luminance(convolve_exact_dirs(capture[..., :3], w, dirs))
+        f_a = convolve_exact_dirs(a, w, dirs)[..., 0]
+        truth = {}
+        for name, s in (("", sky), ("_sky2", sky2)):
+            f_sky = luminance(convolve_exact_dirs(s[..., :3], w, dirs))
+            f_asky = luminance(convolve_exact_dirs(a * s[..., :3], w, dirs))
+            truth[name] = f_st + f_sky - f_asky
+            if not name:
+                diff = f_asky - f_a * f_sky
+                rows["exact"].append(_rel(truth[name] + diff, truth[name]))
+                rows["exact_of_sky_term"].append(float(np.sqrt(np.mean(diff ** 2) / np.mean((f_sky - f_asky) ** 2))))
+        ww = np.full(len(dirs), w)
+        look = {k: c.fetch(dirs, 0.0, ww) for k, c in (("st", st_r), ("sta", sta_r), ("sky", sky_r), ("sky2", sky2_r))}
+        for key, stk in (("half_octave", "st"), ("half_octave_sky_alpha", "sta")):
+            st = look[stk]
+            for name, skk in (("", "sky"), ("_sky2", "sky2")):
+                comp = st[:, :3] + (1.0 - np.clip(st[:, 3:], 0, 1)) * look[skk][:, :3]
+                rows[key + name].append(_rel(luminance(comp), truth[name]))
+    return rows
+
+
 def run(args: argparse.Namespace) -> int:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     n = int(args.size)
-    if n < 4:
-        raise ValueError(f"--size must be >= 4, got {n}")
+    if n < 8:
+        raise ValueError(f"--size must be >= 8, got {n}")
     ctx = create_context()
     rng = np.random.default_rng(0)
     dirs = rng.normal(size=(int(args.dirs), 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     ws = np.logspace(0, 4, int(args.powers))
-    lad = lobe_ladder(n)
-    lad1 = lobe_ladder(n, sigma_texels=1.0)  # the same rule with lobes of 1 texel RMS (better resolved, fewer sharp levels)
-    levels = lad.levels
-    result = {"size": n, "directions": int(args.dirs), "w": ws.tolist(), "ladder": lad.to_manifest(),
-              "cmft_powers": cmft_powers(levels).tolist(), "inputs": {}}
-    for name, env in real_inputs(n, ctx).items():
+    result: dict[str, Any] = {
+        "size": n, "directions": int(args.dirs), "w": ws.tolist(), "ladder": lobe_ladder(n).to_manifest(),
+        "rungs": {m: rung_ladder(n, m).to_manifest() for m in ("half_octave", "octave")},
+        "bytes_per_probe": {m: {str(s): ladder_bytes_per_probe(m, s) for s in (64, 128, 256)} for m in MODES},
+        "cmft_powers": cmft_powers(lobe_ladder(n).levels).tolist(), "inputs": {}, "summary": {}}
+    inputs, capture, sky = zw_inputs(n, ctx)
+    for name, env in inputs.items():
         t0 = time.perf_counter()
-        chains = {
-            "envcap": (prefilter_chain(env, lad, ctx=ctx, progress=False), lad.z(ws)),
-            "envcap_sigma1": (prefilter_chain(env, lad1, ctx=ctx, progress=False), lad1.z(ws)),
-            "mcguire2013": (omega_box_pyramid(env, levels), mcguire_level(ws, n, levels)),
-            "cmft": ([prefilter_level(env, wk, lad.sizes[k], ctx=ctx) for k, wk in enumerate(cmft_powers(levels))],
-                     cmft_level(ws, levels)),
-        }
-        rec = {m: [] for m in chains}
-        for i, w in enumerate(ws):
+        lookups = _lookups(env, n, ctx, compare=True)
+        rec: dict[str, list[float]] = {m: [] for m in lookups}
+        for w in ws:
             ye = luminance(convolve_exact_dirs(env, w, dirs))
-            for m, (chain, lod) in chains.items():
-                yl = luminance(sample_cube(chain, dirs, np.full(len(dirs), lod[i])))
-                rec[m].append(float(np.sqrt(np.mean((yl - ye) ** 2) / np.mean(ye ** 2))))
+            for m, look in lookups.items():
+                rec[m].append(_rel(luminance(look(dirs, np.full(len(dirs), w))), ye))
         result["inputs"][name] = rec
-        print(name, f"{time.perf_counter() - t0:.1f} s", {m: f"max {max(v):.3g} median {np.median(v):.3g}" for m, v in rec.items()}, flush=True)
+        result["summary"][name] = {m: summary(ws, v) for m, v in rec.items()}
+        if name == "street":
+            result["shading"] = shading_errors(env, {m: lookups[m] for m in MODES})
+        print(name, f"{time.perf_counter() - t0:.1f} s",
+              {m: {k: round(v, 4) for k, v in s.items()} for m, s in result["summary"][name].items()}, flush=True)
+    print("shading", result["shading"], flush=True)
+    result["composite"] = composite_errors(capture, sky, other_sky(n), ws, dirs, ctx)
+    print("composite", {k: f"max {max(v):.3g} median {np.median(v):.3g}" for k, v in result["composite"].items()}, flush=True)
     ctx.release()
     with atomic_output_dir(args.out) as tmp:
         (tmp / "zw.json").write_text(json.dumps(result, indent=2))
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        for ax, (name, rec) in zip(axes, result["inputs"].items()):
-            for m, style in (("envcap", "o-"), ("envcap_sigma1", "d-"), ("mcguire2013", "s--"), ("cmft", "^:")):
-                ax.loglog(ws, np.maximum(rec[m], 1e-7), style, label=m)
-            for wk in lad.powers:
-                if 1 <= wk <= 1e4:
-                    ax.axvline(wk, color="0.85", lw=0.8, zorder=0)
-            ax.axhline(5e-3, color="k", ls=":", lw=0.8)
-            ax.set_title(f"{name}, 6x{n}^2: lookup at level(w) vs exact cos^w")
-            ax.set_xlabel("cosine power w (grey: envcap ladder nodes)")
+        fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
+        for ax, (name, rec) in zip(axes.ravel(), result["inputs"].items()):
+            for m, style in (("paper", "o-"), ("half_octave", "*-"), ("octave", "v-"), ("paper_sigma1", "d:"),
+                             ("mcguire2013", "s--"), ("cmft", "^:")):
+                ax.loglog(ws, np.maximum(rec[m], 1e-7), style, label=m, ms=4)
+            ax.axhline(0.015, color="k", ls=":", lw=0.8)
+            ax.set_title(f"{name}, 6x{n}^2: lookup vs exact cos^w")
+            ax.set_xlabel("cosine power w")
             ax.set_ylabel("relative RMSE of luminance")
-            ax.legend(fontsize=8)
+            ax.legend(fontsize=7)
         fig.tight_layout()
         fig.savefig(tmp / "prefilter_zw_error.png", dpi=110)
     return 0
