@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 from tqdm import tqdm
 
 from envcap.formats.exr_cube import write_exr_cube
@@ -21,15 +22,28 @@ if TYPE_CHECKING:
     from envcap.probeset.probe_set import ProbeSet
 
 
+EXR_DIR = "exr"
+
+
+def exr_name(layer: int) -> str:
+    """The file of layer ``layer``, relative to the probe-set directory."""
+    return f"{EXR_DIR}/probe_{layer:03d}.exr"
+
+
+def write_probe_exr(out_dir: Path, layer: int, rgba: NDArray, distance: NDArray | None) -> str:
+    """Write layer ``layer``'s EXR (``rgba`` ``(6, N, N, 4)`` level 0, ``distance`` ``(6, N, N)``
+    m or ``None``) under ``out_dir`` (whose ``exr/`` exists); return its name."""
+    name = exr_name(layer)
+    write_exr_cube(out_dir / name, np.asarray(rgba), None if distance is None else np.asarray(distance), half=True)
+    return name
+
+
 def write_exr_probes(out_dir: Path, ps: ProbeSet) -> FileEntries:
     """Write one EXR cube per probe under ``out_dir / "exr"``; return ``{"exr": [paths]}``."""
-    (out_dir / "exr").mkdir()
+    (out_dir / EXR_DIR).mkdir()
     names = []
     for i in tqdm(range(ps.layer_count), desc="probe EXR", unit="probe", disable=None):
-        name = f"exr/probe_{i:03d}.exr"
-        dist = None if ps.distance is None else np.asarray(ps.distance[i])
-        write_exr_cube(out_dir / name, np.asarray(ps.levels[0][i]), dist, half=True)
-        names.append(name)
+        names.append(write_probe_exr(out_dir, i, ps.levels[0][i], None if ps.distance is None else ps.distance[i]))
     return {"exr": names}
 
 

@@ -133,6 +133,30 @@ def _convert(a: NDArray, fmt: str, clamp: bool, what: str) -> NDArray:
     return out
 
 
+_BLOCK = 1 << 22
+"""Values converted and written at once by :func:`_write_level` (16 MiB of float32)."""
+
+
+def _write_level(f: Any, a: NDArray, fmt: str, clamp: bool, what: str) -> None:
+    """Convert ``a`` to ``fmt``'s little-endian components and append them to ``f``, in blocks of
+    :data:`_BLOCK` values; a level that :func:`_convert` would refuse is refused with its message
+    (the whole level checked) before anything of it is written."""
+    comp = np.dtype(FORMATS[fmt][1]).newbyteorder("<")
+    flat = np.ascontiguousarray(a).reshape(-1)
+    blocks = [flat[i:i + _BLOCK] for i in range(0, flat.size, _BLOCK)]
+    half = FORMATS[fmt][1] is np.float16
+    limit = HALF_MAX if half else float(np.finfo(np.float32).max)
+    for b in blocks:
+        if not np.isfinite(b).all() or ((not clamp or not half) and np.abs(b).max(initial=0.0) > limit):
+            out = _convert(a, fmt, clamp, what)  # raises, naming the counts of the whole level
+            f.write(memoryview(np.ascontiguousarray(out, dtype=comp).reshape(-1)).cast("B"))  # (rounds into range)
+            return
+    for b in blocks:
+        if clamp and half:
+            b = np.clip(b, -HALF_MAX, HALF_MAX)
+        f.write(memoryview(b.astype(comp)).cast("B"))
+
+
 def write_ktx2(
     path: str | os.PathLike[str],
     levels: list[NDArray],
@@ -152,13 +176,18 @@ def write_ktx2(
     ``rgba16f`` values beyond +-65504 raise ``ValueError`` unless ``clamp=True``.
     ``premultiplied`` sets the DFD's alpha-premultiplied flag.  ``kv`` adds key/value entries
     (str -> str) next to ``KTXorientation = "rd"`` and ``KTXwriter``.  Returns the path.
+
+    Streamed: the header, level index, DFD and key/values are computed from the shapes, then
+    each level is converted and written on its own (smallest first, as the file stores them), so
+    the converted copy held at once is one level, never the whole file.  Bytes are those of the
+    earlier in-memory writer (``tests/formats/test_ktx2_stream.py`` pins them).
     """
     if fmt not in FORMATS:
         raise ValueError(f"unknown KTX2 format {fmt!r}; expected one of {sorted(FORMATS)}")
     if not isinstance(levels, (list, tuple)) or len(levels) == 0:
         raise ValueError("levels must be a non-empty list of arrays")
     vk_format, comp = FORMATS[fmt]
-    arrays: list[NDArray] = []
+    arrays: list[NDArray] = []  # the checked, unconverted levels
     n0 = layers = 0
     for k, lev in enumerate(levels):
         a = np.asarray(lev)
@@ -178,12 +207,15 @@ def write_ktx2(
         if a.shape[-2] != nk or (layered and a.shape[0] != layers):
             want = ((layers,) if layered else ()) + (6, nk, nk, 4)
             raise ValueError(f"level {k} must have shape {want}, got {a.shape}")
-        arrays.append(_convert(a, fmt, clamp, f"level {k}"))
+        if not np.issubdtype(a.dtype, np.floating):
+            raise ValueError(f"level {k}: expected a floating-point array, got dtype {a.dtype}")
+        arrays.append(a)
     kvd = _kvd(_check_kv(kv))
     dfd = _dfd(fmt, premultiplied)
     n_levels = len(arrays)
     texel = 4 * np.dtype(comp).itemsize
     align = math.lcm(texel, 4)
+    nbytes = [a.size * np.dtype(comp).itemsize for a in arrays]
 
     dfd_off = _HEADER.size + _LEVEL.size * n_levels
     kvd_off = dfd_off + len(dfd)
@@ -192,19 +224,19 @@ def write_ktx2(
     for k in reversed(range(n_levels)):  # smallest level first in the file
         pos = _align(pos, align)
         offsets[k] = pos
-        pos += arrays[k].nbytes
+        pos += nbytes[k]
     header = _HEADER.pack(
         IDENTIFIER, vk_format, np.dtype(comp).itemsize, n0, n0, 0, layers, 6, n_levels, 0,
         dfd_off, len(dfd), kvd_off, len(kvd), 0, 0,
     )
-    index = b"".join(_LEVEL.pack(offsets[k], arrays[k].nbytes, arrays[k].nbytes) for k in range(n_levels))
+    index = b"".join(_LEVEL.pack(offsets[k], nbytes[k], nbytes[k]) for k in range(n_levels))
     final = Path(path)
     with atomic_output_file(final) as tmp:
         with open(tmp, "wb") as f:
             f.write(header + index + dfd + kvd)
             for k in reversed(range(n_levels)):
                 f.write(b"\0" * (offsets[k] - f.tell()))
-                f.write(np.ascontiguousarray(arrays[k]).astype(np.dtype(comp).newbyteorder("<"), copy=False).tobytes())
+                _write_level(f, arrays[k], fmt, clamp, f"level {k}")
     return final
 
 
@@ -308,3 +340,17 @@ def read_ktx2(path: str | os.PathLike[str]) -> tuple[list[NDArray[np.float32]], 
         "layered": layers > 0, "premultiplied": premultiplied, "kv": kv,
     }
     return levels, info
+
+
+def basic_dfd(fmt: str, premultiplied: bool) -> bytes:
+    """The Data Format Descriptor of ``fmt`` (``"rgba16f"`` / ``"rgba32f"``) with its leading
+    ``dfdTotalSize`` (92 bytes), as every envcap KTX2 file has it (``docs/formats.md``)."""
+    if fmt not in FORMATS:
+        raise ValueError(f"unknown KTX2 format {fmt!r}; expected one of {sorted(FORMATS)}")
+    return _dfd(fmt, premultiplied)
+
+
+def key_value_data(kv: dict[str, str] | None = None) -> bytes:
+    """The key/value data block: ``KTXorientation = "rd"``, ``KTXwriter`` and the checked
+    entries of ``kv``, sorted by key, each padded to 4 bytes."""
+    return _kvd(_check_kv(kv))

@@ -4,9 +4,11 @@
   data must fit half floats, +-65504);
 * ``sky.ktx2``: plain cube map RGBA32F (the sun can exceed the half-float range).
 
-Both carry the key/values ``envcapManifest = manifest.json``, ``envcapFormat = "<format>
-<version>"`` and ``envcapContent = probes | sky``.  Manifest entries: ``files.probes``,
-``files.sky``.  Parameters: none.  Layout in ``docs/formats.md``.
+Both carry only the key/values the KTX 2.0 specification defines (``KTXorientation``,
+``KTXwriter``), so that ``ktx validate`` passes them without warnings; what they are is said by
+the manifest beside them (``manifest.json``: ``files.probes``, ``files.sky``, the lobe ladder,
+the probes' layers).  Manifest entries: ``files.probes``, ``files.sky``.  Parameters: none.
+Layout in ``docs/formats.md``.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from envcap.formats.ktx2 import write_ktx2
-from envcap.formats.writer import MANIFEST_FILE, FileEntries, ProbeSetWriter
+from envcap.formats.writer import FileEntries, ProbeSetWriter
 
 if TYPE_CHECKING:
     from envcap.probeset.probe_set import ProbeSet
@@ -28,11 +30,9 @@ SKY_FILE = "sky.ktx2"
 
 def write_ktx2_textures(out_dir: Path, ps: ProbeSet) -> FileEntries:
     """Write the probe array and the sky chain under ``out_dir``; return their entries."""
-    kv = {"envcapManifest": MANIFEST_FILE, "envcapFormat": f"{ps.manifest.format} {ps.manifest.version}"}
     write_ktx2(out_dir / PROBES_FILE, [np.asarray(a) for a in ps.levels], layered=True, fmt="rgba16f",
-               kv={**kv, "envcapContent": "probes"}, premultiplied=True)
-    write_ktx2(out_dir / SKY_FILE, [np.asarray(a) for a in ps.sky_levels], layered=False, fmt="rgba32f",
-               kv={**kv, "envcapContent": "sky"})
+               premultiplied=True)
+    write_ktx2(out_dir / SKY_FILE, [np.asarray(a) for a in ps.sky_levels], layered=False, fmt="rgba32f")
     return {"probes": PROBES_FILE, "sky": SKY_FILE}
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 from tqdm import tqdm
 
 from envcap.formats.png_preview import contact_sheet_png, cube_cross_png
@@ -33,17 +34,33 @@ def layer_labels(ps: ProbeSet) -> list[str]:
     return labels
 
 
+PREVIEW_DIR = "previews"
+
+
+def write_probe_preview(out_dir: Path, layer: int, rgba: NDArray) -> str:
+    """Write layer ``layer``'s cross (``rgba`` ``(6, N, N, 4)``, level 0) under ``out_dir`` (whose
+    ``previews/`` exists); return its name."""
+    name = f"{PREVIEW_DIR}/probe_{layer:03d}.png"
+    cube_cross_png(out_dir / name, np.asarray(rgba))
+    return name
+
+
+def write_set_previews(out_dir: Path, ps: ProbeSet) -> FileEntries:
+    """Write the previews of the whole set (the sky's cross, the contact sheet) under
+    ``out_dir`` (whose ``previews/`` exists); return their entries."""
+    cube_cross_png(out_dir / PREVIEW_DIR / "sky.png", np.asarray(ps.sky_levels[0]))
+    contact_sheet_png(out_dir / PREVIEW_DIR / "contact_sheet.png", [np.asarray(a) for a in ps.levels[0]],
+                      layer_labels(ps))
+    return {"sky_preview": f"{PREVIEW_DIR}/sky.png", "contact_sheet": f"{PREVIEW_DIR}/contact_sheet.png"}
+
+
 def write_previews(out_dir: Path, ps: ProbeSet) -> FileEntries:
     """Write the PNG previews under ``out_dir / "previews"``; return their entries."""
-    (out_dir / "previews").mkdir()
+    (out_dir / PREVIEW_DIR).mkdir()
     names = []
     for i in tqdm(range(ps.layer_count), desc="previews", unit="probe", disable=None):
-        name = f"previews/probe_{i:03d}.png"
-        cube_cross_png(out_dir / name, np.asarray(ps.levels[0][i]))
-        names.append(name)
-    cube_cross_png(out_dir / "previews/sky.png", np.asarray(ps.sky_levels[0]))
-    contact_sheet_png(out_dir / "previews/contact_sheet.png", [np.asarray(a) for a in ps.levels[0]], layer_labels(ps))
-    return {"previews": names, "sky_preview": "previews/sky.png", "contact_sheet": "previews/contact_sheet.png"}
+        names.append(write_probe_preview(out_dir, i, ps.levels[0][i]))
+    return {"previews": names, **write_set_previews(out_dir, ps)}
 
 
 WRITER = ProbeSetWriter("previews", "PNG crosses of each probe and the sky, and a contact sheet", write_previews)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from envcap.formats import exr_writer, ktx2_writer, preview_writer
+from envcap.formats import exr_writer, ktx2_writer, latlong_writer, preview_writer, webgl2_writer
 from envcap.formats.writer import ProbeSetWriter
 
 WRITERS: dict[str, ProbeSetWriter] = {}
@@ -49,3 +49,5 @@ def select_writers(names: Iterable[str]) -> list[ProbeSetWriter]:
 register_writer(ktx2_writer.WRITER)
 register_writer(exr_writer.WRITER)
 register_writer(preview_writer.WRITER)
+register_writer(webgl2_writer.WRITER)
+register_writer(latlong_writer.WRITER)
