@@ -22,11 +22,12 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from envcap.capture.outputs import probe_inside_geometry
+from envcap.capture.outputs import CaptureSet, probe_inside_geometry
 from envcap.capture.renderer import CubeCapture
 from envcap.core.checks import positive_int
 from envcap.core.lobes import lobe_ladder
@@ -38,14 +39,64 @@ from envcap.probeset.manifest import LobeTable, Manifest, Probe, SceneInfo, SkyI
 from envcap.probeset.placement import MAX_PROBES, place_probes, probe_count
 from envcap.probeset.planes import Planes, fit_planes
 from envcap.probeset.probe_set import ProbeSet
+from envcap.probeset.progress import BakeProgress
 from envcap.probeset.street_checks import (inside_geometry_warning, plane_fit_warnings,
                                           street_setup_warnings)
 from envcap.scene.model import Scene
 
 
+CAPTURE_CHUNK = 8
+"""Probes captured between two ``on_captured`` calls (no effect on the result)."""
+PREFILTER_BATCH_BYTES = 64 << 20
+"""Level-0 float32 RGBA bytes per prefilter batch (the filters' own default).  The bake filters
+whole batches at a time, so its chunks are the batches the filter would make of the whole set:
+the result is bit-identical to one call (the coarse-source qualities' footprint truncation
+follows a batch's dynamic range, so the batches must not move)."""
+
+PREFILTER_CHUNK_PROBES = 16
+"""At least this many probes per prefilter call of the bake (rounded up to whole batches)."""
+
+CapturedFn = Callable[[int, np.ndarray, np.ndarray], None]
+"""``on_captured(first_layer, rgba, distance)``: level 0 ``(P, 6, N, N, 4)`` float32 and its
+distances ``(P, 6, N, N)`` (m) of layers ``first_layer ..`` as soon as they are captured (e.g.
+for :class:`envcap.formats.probe_files.ProbeFileWriter`); the arrays are the bake's own: read only."""
+
+
 def _log(msg: str, verbose: bool) -> None:
     if verbose:
         print(msg, file=sys.stderr, flush=True)
+
+
+def _capture(cap: CubeCapture, positions: np.ndarray, report: BakeProgress, progress: bool,
+             on_captured: CapturedFn | None) -> CaptureSet:
+    """``cap.capture_many(positions)``, reporting each probe in the current stage and handing
+    every :data:`CAPTURE_CHUNK` probes to ``on_captured``."""
+    done = [0]
+
+    def on_probe(i: int, out: CaptureSet) -> None:
+        report.advance()
+        if on_captured is not None and (i + 1 - done[0] >= CAPTURE_CHUNK or i + 1 == len(positions)):
+            on_captured(done[0], out.rgba[done[0]:i + 1], out.distance[done[0]:i + 1])
+            done[0] = i + 1
+
+    return cap.capture_many(positions, progress=progress and report.mode == "off", on_probe=on_probe)
+
+
+def _prefilter_chunks(rgba: np.ndarray, ladder: Any, quality: str, ctx: Any, report: BakeProgress,
+                      progress: bool | None) -> list[np.ndarray]:
+    """``prefilter_many(rgba)`` a few of its own batches at a time (bit-identical), reporting each
+    in the current stage."""
+    n = rgba.shape[2]
+    per = max(1, int(PREFILTER_BATCH_BYTES // (6 * n * n * 16)))
+    step = per * max(1, -(-PREFILTER_CHUNK_PROBES // per)) if report.mode != "off" else len(rgba)
+    levels = [np.empty((rgba.shape[0], 6, s, s, 4), np.float32) for s in ladder.sizes]
+    for i0 in range(0, len(rgba), step):
+        part = prefilter_many(rgba[i0:i0 + step], ladder, quality=quality, ctx=ctx,
+                              progress=progress if report.mode == "off" else False, batch_bytes=PREFILTER_BATCH_BYTES)
+        for lv, got in zip(levels, part):
+            lv[i0:i0 + step] = got
+        report.advance(len(part[0]))
+    return levels
 
 
 def bake_probe_set(
@@ -61,6 +112,8 @@ def bake_probe_set(
     progress: bool | None = None,
     verbose: bool = False,
     max_probes: int = MAX_PROBES,
+    report: BakeProgress | None = None,
+    on_captured: CapturedFn | None = None,
 ) -> ProbeSet:
     """Capture and filter the probes of every street of ``scene``.
 
@@ -74,6 +127,12 @@ def bake_probe_set(
     through the filtered alpha of facade edges at wide lobes (see docs/evaluation.md).
     ``ctx``: a moderngl context (one is made when ``None``).  Returns the probe set in memory;
     the layers of ``levels`` are the probes of all streets, in street order.
+
+    ``report``: stages and probes/s (:class:`envcap.probeset.progress.BakeProgress`: sky,
+    capture, prefilter); without one the capture and filter show their own tqdm bars as
+    ``progress`` says.  ``on_captured``: see :data:`CapturedFn` (called per chunk of
+    :data:`CAPTURE_CHUNK` probes, in layer order, from this thread).  Capture and filtering run
+    in chunks; the result does not depend on them (tested).
 
     A probe that stands inside a building (most of its sphere sees back faces) is kept and
     flagged ``inside_geometry`` in the manifest, with a warning on stderr.
@@ -99,6 +158,7 @@ def bake_probe_set(
     _log(f"{scene.name}: {len(positions)} probes on {len(scene.streets)} street(s), {resolution}^2 per face", verbose)
 
     timings: dict[str, float] = {}
+    report = BakeProgress("off") if report is None else report
     own_ctx = ctx is None
     if own_ctx:
         ctx = create_context()
@@ -107,33 +167,38 @@ def bake_probe_set(
         if note is not None:
             _log(f"envcap: note: {note}", verbose)
         t0 = time.perf_counter()
+        report.start("sky", 0)
         sky = scene.sky.build()
         sky_rgb = sky.cube(resolution, include_sun=sun_in_sky)
         sky_rgba = np.concatenate([sky_rgb, np.ones(sky_rgb.shape[:-1] + (1,), np.float32)], axis=-1)
         timings["sky_s"] = time.perf_counter() - t0
+        report.finish()
 
         t0 = time.perf_counter()
+        report.start("capture", len(positions))
         cap = CubeCapture.from_scene(scene, resolution, sky=sky, ctx=ctx)
         try:
-            captured = cap.capture_many(positions, progress=bool(progress) if progress is not None else True)
+            captured = _capture(cap, positions, report, bool(progress) if progress is not None else True, on_captured)
         finally:
             cap.release()
         timings["capture_s"] = time.perf_counter() - t0
+        report.finish()
         timings.update({f"pass_{k}_s": float(v) for k, v in captured.pass_times_s.items()})
         check_half_range(captured.rgba, [(p.street, p.index) for street in placements for p in street], positions,
                          scene, sky)
 
         t0 = time.perf_counter()
+        report.start("prefilter", len(positions))
         if filter_levels:
             ladder = lobe_ladder(resolution)
-            levels = [lv.astype(np.float32, copy=False)
-                      for lv in prefilter_many(captured.rgba, ladder, quality=quality, ctx=ctx, progress=progress)]
+            levels = _prefilter_chunks(captured.rgba, ladder, quality, ctx, report, progress)
             sky_levels = [lv.astype(np.float32) for lv in prefilter_chain(sky_rgba, ladder, quality=quality, ctx=ctx, progress=False)]
             lobes: LobeTable | None = LobeTable.from_json(ladder.to_manifest())
             powers: list[float | None] = [float(w) for w in ladder.powers]
         else:
             levels, sky_levels, lobes, powers = [captured.rgba.astype(np.float32)], [sky_rgba], None, [None]
         timings["prefilter_s"] = time.perf_counter() - t0
+        report.finish()
     finally:
         if own_ctx:
             ctx.release()
@@ -141,6 +206,7 @@ def bake_probe_set(
     streets = []
     layer = 0
     warnings = []
+    report.start("planes", len(positions))
     for st, probes in zip(scene.streets, placements):
         entries = []
         for p in probes:
@@ -150,10 +216,12 @@ def bake_probe_set(
                 warnings.append(inside_geometry_warning(st.name, p.index, p.position, captured.backfacing[layer]))
             entries.append(Probe(layer, p.index, p.position, p.planes, fitted, bool(inside_flag)))
             layer += 1
+            report.advance()
         fits = [(e.index, e.planes, e.fitted_planes) for e in entries if e.fitted_planes is not None]
         warnings += plane_fit_warnings(st.name, st.facade_max - st.facade_min, fits)
         streets.append(Street(st.name, st.axis, float(st.start), float(st.end), float(st.center_line),
                               Planes(float(st.facade_min), float(st.facade_max), float(st.ground)), tuple(entries)))
+    report.finish()
     for line in warnings:
         print(f"envcap: warning: {line}", file=sys.stderr)
 
@@ -162,6 +230,7 @@ def bake_probe_set(
         resolution=resolution,
         levels=level_table(resolution, len(levels), powers),
         lobes=lobes,
+        prefilter_quality=quality if filter_levels else None,
         probe_height=float(height),
         probe_spacing=float(spacing),
         streets=tuple(streets),

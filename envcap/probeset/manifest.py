@@ -215,7 +215,9 @@ class Manifest:
     """A probe-set manifest, version 1.  Fixed fields first (checked equal to their defaults,
     except ``cube_convention`` and ``envcap_version``, any string); ``resolution`` N is the
     face size of level 0 (texels); ``levels`` the mip levels in order; ``lobes`` the lobe
-    ladder (``None`` -> JSON ``{}``: unfiltered); ``probe_height``, ``probe_spacing`` in m;
+    ladder (``None`` -> JSON ``{}``: unfiltered); ``prefilter_quality`` the filter that made
+    levels 1.. (``envcap.prefilter.QUALITIES``; ``None``: not recorded, omitted from the JSON);
+    ``probe_height``, ``probe_spacing`` in m;
     ``effects`` the scene's capture effects and ``passes_run`` the capture passes run;
     ``scene`` (``None`` -> JSON ``{}``: unknown)."""
 
@@ -230,6 +232,7 @@ class Manifest:
     resolution: int
     levels: tuple[Level, ...]
     lobes: LobeTable | None = field(default=None, metadata={"json": "empty_object_none"})
+    prefilter_quality: str | None = field(default=None, metadata=_OMIT)
     probe_height: float
     probe_spacing: float
     streets: tuple[Street, ...]

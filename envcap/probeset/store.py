@@ -27,8 +27,10 @@ from envcap.formats.ktx2 import read_ktx2
 from envcap.formats.registry import default_writer_names, select_writers
 from envcap.formats.writer import MANIFEST_FILE, FileEntries
 from envcap.outputs import atomic_output_dir
+from envcap.probeset.city_index import INDEX_FILE, merge_shards, read_city_index
 from envcap.probeset.manifest import Files, ManifestError, read_manifest, write_manifest
 from envcap.probeset.probe_set import ProbeSet, check_probe_set, check_texels
+from envcap.probeset.progress import BakeProgress
 
 
 def write_probe_set(
@@ -55,23 +57,45 @@ def write_probe_set(
     probe_set.manifest.to_json()  # strict JSON and every manifest rule, before anything is written
     check_probe_set(probe_set)
     with atomic_output_dir(out_dir, kind="probe-set") as tmp:
-        entries: FileEntries = {}
-        for writer in chosen:
-            got = writer.write(tmp, probe_set)
-            taken = sorted(set(got) & set(entries))
-            if taken:
-                raise ValueError(f"probe-set writer {writer.name!r}: files entries {taken} already written")
-            entries.update(got)
-        try:
-            files = Files.from_json(entries)
-        except ManifestError as e:
-            raise ValueError(f"probe-set writers returned bad files entries: {e}") from None
-        write_manifest(tmp / MANIFEST_FILE, replace(probe_set.manifest, files=files))
+        fill_probe_set_dir(tmp, probe_set, [w.name for w in chosen], checked=True)
     return Path(out_dir).resolve()
 
 
+def fill_probe_set_dir(tmp: Path, probe_set: ProbeSet, writers: Iterable[str], *, written: FileEntries | None = None,
+                       checked: bool = False, report: BakeProgress | None = None) -> None:
+    """Run the output ``writers`` (plus the required ones) into ``tmp`` (a directory from
+    :func:`envcap.outputs.atomic_output_dir`) and write the manifest: the body of
+    :func:`write_probe_set`, for callers that write some files themselves while the bake runs
+    (:class:`envcap.formats.probe_files.ProbeFileWriter`); ``written``: those files' entries.
+    Checks the manifest and the arrays first unless ``checked`` (``ValueError``).  ``report``:
+    one stage ``write <name>`` per writer."""
+    chosen = select_writers(writers)
+    if not checked:
+        probe_set.manifest.to_json()
+        check_probe_set(probe_set)
+    entries: FileEntries = {}
+    for writer in chosen:
+        with (report or BakeProgress("off")).stage(f"write {writer.name}", probe_set.layer_count) as stage:
+            got = writer.write(tmp, probe_set)
+            stage.advance(probe_set.layer_count)
+        taken = sorted(set(got) & set(entries))
+        if taken:
+            raise ValueError(f"probe-set writer {writer.name!r}: files entries {taken} already written")
+        entries.update(got)
+    taken = sorted(set(written or {}) & set(entries))
+    if taken:
+        raise ValueError(f"files entries {taken} written twice")
+    entries.update(written or {})
+    try:
+        files = Files.from_json(entries)
+    except ManifestError as e:
+        raise ValueError(f"probe-set writers returned bad files entries: {e}") from None
+    write_manifest(tmp / MANIFEST_FILE, replace(probe_set.manifest, files=files))
+
+
 def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> ProbeSet:
-    """Read a probe-set directory; check the manifest and the textures against it.
+    """Read a probe-set directory, or a city probe set (a directory with ``city.json``: its
+    shards merged, :func:`read_city_probe_set`); check the manifest and the textures against it.
 
     Probe levels come back as float32 (from RGBA16F, exact), the sky as float32.  ``distance``
     is read from the EXR files' Z channels when they exist (and ``distance`` is true), else
@@ -84,6 +108,8 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
     root = Path(path)
     if not root.is_dir():
         raise FileNotFoundError(f"probe-set directory not found: {root}")
+    if (root / INDEX_FILE).is_file() and not (root / MANIFEST_FILE).is_file():
+        return read_city_probe_set(root, distance=distance)
     mpath = root / MANIFEST_FILE
     if not mpath.is_file():
         raise FileNotFoundError(f"{root} is not a probe set: {MANIFEST_FILE} missing")
@@ -117,3 +143,15 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
             ds.append(d)
         dist = np.stack(ds).astype(np.float32)
     return ProbeSet(manifest=manifest, levels=levels, distance=dist, sky_levels=sky)
+
+
+def read_city_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> ProbeSet:
+    """Read every shard of the city probe set at ``path`` (the directory of ``city.json``, or
+    the file) and merge them into one probe set whose layers are the city's
+    (:func:`envcap.probeset.city_index.merge_shards`); each shard is read and checked by
+    :func:`read_probe_set`, then checked against the index."""
+    root = Path(path)
+    root = root.parent if root.name == INDEX_FILE and root.is_file() else root
+    index = read_city_index(root)
+    shards = [read_probe_set(root / sh.path, distance=distance) for sh in index.shards]
+    return merge_shards(index, shards, str(root / INDEX_FILE))
