@@ -7,24 +7,46 @@ import os
 import time
 from pathlib import Path
 
+from envcap.cli.capture_city import add_city_arguments, city_requested, run_city
 from envcap.cli.output_options import add_force_argument, scene_input_files
+from envcap.formats.registry import default_writer_names
+from envcap.formats.scene_gltf_writer import registered_scene_writer
 from envcap.outputs import claim_output_dir
 from envcap.prefilter import QUALITIES
-from envcap.probeset.bake import bake_probe_set
-from envcap.probeset.store import write_probe_set
+from envcap.probeset.bake_output import bake_to_directory
+from envcap.probeset.progress import BakeProgress
 from envcap.scene import load_scene
 
 
-def add_bake_arguments(p: argparse.ArgumentParser, resolution: int) -> None:
-    """Options shared by ``capture`` and ``demo``."""
+BAKE_QUALITY = "composed"
+"""The filter of ``capture`` and ``demo`` (issue 11): levels composed with difference lobes, 4-6x
+less CPU than ``"default"`` and within 0.5 % of the exact reference at every level (docs/bake.md).
+The library's :func:`envcap.probeset.bake.bake_probe_set` keeps ``"default"``."""
+
+
+def add_bake_arguments(p: argparse.ArgumentParser, resolution: int, *, files: bool = False) -> None:
+    """Options shared by ``capture`` and ``demo``; ``files``: whether the per-probe EXRs and the
+    previews are written unless ``--no-exr`` / ``--no-previews`` (``demo``) or only with
+    ``--exr`` / ``--previews`` (``capture``: the probe set needs neither)."""
     p.add_argument("--resolution", type=int, default=resolution, metavar="N", help=f"face size in texels (default {resolution})")
     p.add_argument("--spacing", type=float, default=5.0, metavar="M", help="probe spacing along the street in meters (default 5)")
     p.add_argument("--height", type=float, default=2.0, metavar="M", help="probe height above the ground in meters (default 2)")
-    p.add_argument("--quality", default="default", choices=list(QUALITIES), help="cosine-lobe filter quality")
+    p.add_argument("--quality", default=BAKE_QUALITY, choices=list(QUALITIES),
+                   help=f"cosine-lobe filter quality (default {BAKE_QUALITY}: <= 0.2%% error per level, docs/bake.md)")
     p.add_argument("--sun-in-sky", action="store_true",
                    help="splat the sun into sky.ktx2 (float32) instead of keeping it only as an analytic light")
-    p.add_argument("--no-exr", action="store_true", help="skip the per-probe OpenEXR files")
-    p.add_argument("--no-previews", action="store_true", help="skip the PNG previews")
+    on_off = "default: on; --no-{0} to skip" if files else "default: off; --{0} to write"
+    p.add_argument("--exr", action=argparse.BooleanOptionalAction, default=files,
+                   help=f"per-probe OpenEXR cubes exr/probe_NNN.exr, level 0 and distance ({on_off.format('exr')})")
+    p.add_argument("--previews", action=argparse.BooleanOptionalAction, default=files,
+                   help=f"PNG previews: a cross per probe, the sky, a contact sheet ({on_off.format('previews')})")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr (warnings and errors still)")
+    p.add_argument("--webgl2", action="store_true",
+                   help="also write probes_atlas.ktx2: the probes as face atlases for WebGL2 / three.js (docs/engines.md)")
+    p.add_argument("--latlong", action="store_true",
+                   help="also write latlong/*.exr: lat-long maps of the sky and of each probe over it (docs/engines.md)")
+    p.add_argument("--scene-gltf", action="store_true",
+                   help="also write scene.glb: the scene mesh near the streets as binary glTF, drawn by 'envcap view' (docs/viewer.md)")
     add_force_argument(p)
 
 
@@ -33,6 +55,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("scene", help="bundled scene name (see 'envcap scenes') or path to a scene .toml")
     p.add_argument("--out", required=True, type=Path, help="output directory (written atomically)")
     add_bake_arguments(p, 256)
+    add_city_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -48,10 +71,14 @@ def bake_to_dir(args: argparse.Namespace, scene_name: str, out: str | os.PathLik
     check_bake_arguments(args)
     t0 = time.perf_counter()
     scene = load_scene(scene_name)
-    ps = bake_probe_set(scene, resolution=args.resolution, spacing=args.spacing, height=args.height,
-                        quality=args.quality, sun_in_sky=args.sun_in_sky, verbose=True)
-    ps.manifest = ps.manifest.with_timings(total_s=round(time.perf_counter() - t0, 3))
-    path = write_probe_set(out, ps, exr=not args.no_exr, previews=not args.no_previews)
+    writers = ([n for n in default_writer_names() if n not in ("exr", "previews")]   # those two: --exr, --previews
+               + [w for w in ("webgl2", "latlong") if getattr(args, w, False)])
+    quiet = bool(getattr(args, "quiet", False))
+    report = BakeProgress("off" if quiet else "auto")
+    with registered_scene_writer(scene if getattr(args, "scene_gltf", False) else None) as scene_writer:
+        path, ps = bake_to_directory(scene, out, exr=args.exr, previews=args.previews, writers=writers + scene_writer,
+                                     report=report, resolution=args.resolution, spacing=args.spacing, height=args.height,
+                                     quality=args.quality, sun_in_sky=args.sun_in_sky, verbose=not quiet)
     n = ps.layer_count
     print(f"wrote {n} probes ({args.resolution}^2 x 6, {len(ps.levels)} levels) of '{scene.name}' to {path}"
           f" in {time.perf_counter() - t0:.1f} s")
@@ -60,6 +87,10 @@ def bake_to_dir(args: argparse.Namespace, scene_name: str, out: str | os.PathLik
 
 def run(args: argparse.Namespace) -> int:
     check_bake_arguments(args)
+    if city_requested(args):
+        if getattr(args, "scene_gltf", False):
+            raise ValueError("--scene-gltf is for one scene's probe set, not a city bake")
+        return run_city(args)
     with claim_output_dir(args.out, kind="probe-set", inputs=scene_input_files(args.scene), force=args.force) as out:
         bake_to_dir(args, args.scene, out)
     return 0

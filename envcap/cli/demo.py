@@ -27,7 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=Path("envcap-demo"), help="output directory (default ./envcap-demo)")
     p.add_argument("--scene", default=DEMO_SCENE, help=f"bundled scene (default {DEMO_SCENE})")
     p.add_argument("--no-eval", action="store_true", help="skip the short evaluation")
-    add_bake_arguments(p, 64)
+    add_bake_arguments(p, 64, files=True)
     p.set_defaults(func=run, spacing=10.0)
 
 
@@ -41,7 +41,8 @@ def run(args: argparse.Namespace) -> int:
         evaluation = None if args.no_eval else claims.enter_context(
             claim_output_dir(out / "evaluation", kind="evaluation-report", inputs=inputs, force=args.force))
         probes_dir = bake_to_dir(args, args.scene, probes)
-        print(f"previews: {probes_dir / 'previews' / 'contact_sheet.png'}")
+        if args.previews:
+            print(f"previews: {probes_dir / 'previews' / 'contact_sheet.png'}")
         if evaluation is not None:
             quick_evaluation(load_scene(args.scene), probes_dir, evaluation)
     print(f"demo finished in {time.perf_counter() - t0:.1f} s; outputs in {out.resolve()}")

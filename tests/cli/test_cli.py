@@ -18,7 +18,7 @@ def test_capture_writes_a_probe_set_that_reads_back(tmp_path):
     from envcap.probeset.store import read_probe_set
 
     out = tmp_path / "set"
-    r = run_cli("capture", "imported", "--out", str(out), "--resolution", "16", "--spacing", "20", "--no-previews")
+    r = run_cli("capture", "imported", "--out", str(out), "--resolution", "16", "--spacing", "20", "--exr")
     assert r.returncode == 0, r.stderr
     ps = read_probe_set(out)
     m = ps.manifest
@@ -33,6 +33,8 @@ def test_capture_writes_a_probe_set_that_reads_back(tmp_path):
         a = level[..., 3]
         assert a.min() >= -1e-3 and a.max() <= 1 + 1e-3
     assert (out / "exr").is_dir() and len(list((out / "exr").glob("*.exr"))) == ps.layer_count
+    assert not (out / "previews").exists()  # opt-in for capture (--previews)
+    assert "progress: capture: " in r.stderr and "probes/s" in r.stderr  # progress: lines when not a terminal
     json.dumps(m.to_json(), allow_nan=False)
 
 

@@ -20,7 +20,7 @@ from hypothesis.configuration import set_hypothesis_home_dir
 # example database (runs are derandomized), so its files go to the ignored .pytest_cache instead.
 set_hypothesis_home_dir(str(REPO / ".pytest_cache" / "hypothesis"))
 
-BAKE_ARGS = ["planes", "--resolution", "8", "--spacing", "50", "--no-previews"]
+BAKE_ARGS = ["planes", "--resolution", "8", "--spacing", "50", "--exr"]
 """The session's probe set: the bundled ``planes`` street, 4 probes of 8^2 texels per face, 4 levels."""
 
 
