@@ -25,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import ConvexHull, QhullError
 
 from envcap.dynamic.gltf_skin import SkinnedAvatar, global_matrices
 
@@ -58,6 +57,8 @@ def hull_sphere(points: NDArray) -> tuple[NDArray[np.float64], float]:
         return np.zeros(3), 0.0
     if len(pts) < 4:
         return pts.mean(axis=0), 0.0
+    from scipy.spatial import ConvexHull, QhullError  # heavy (~0.4 s): only when spheres are fitted
+
     try:
         hull = ConvexHull(pts)
     except QhullError:

@@ -28,9 +28,9 @@ import json
 import xml.etree.ElementTree as ET
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import trimesh
 from numpy.typing import NDArray
 from PIL import Image
 
@@ -127,8 +127,10 @@ def _export_ply(path: Path, verts: NDArray[np.float64], faces: NDArray[np.int64]
 
 
 def _textured(verts: NDArray[np.float64], faces: NDArray[np.int64], uv_m: NDArray[np.float64], color: tuple[float, float, float],
-              emissive: tuple[float, float, float]) -> trimesh.Trimesh:
-    """A textured mesh; ``verts`` already in the file's frame."""
+              emissive: tuple[float, float, float]) -> Any:
+    """A textured ``trimesh.Trimesh``; ``verts`` already in the file's frame."""
+    import trimesh  # heavy (~0.3 s): only when a city is written, not when envcap's CLI starts
+
     material = trimesh.visual.material.PBRMaterial(
         baseColorTexture=window_texture(), baseColorFactor=[*(int(255 * c) for c in color), 255],
         emissiveFactor=list(emissive), metallicFactor=0.0, roughnessFactor=1.0)
@@ -189,6 +191,8 @@ def write_city(layout: CityLayout, out_dir: Path, terrain_cell: float = 10.0) ->
             continue
         if index == TEXTURED_OBJ:
             mesh = _textured(world_to_file(verts), faces, uv, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
+            import trimesh  # heavy: see _textured
+
             obj_text, extra = trimesh.exchange.obj.export_obj(mesh, include_texture=True, mtl_name="obj_house.mtl", return_texture=True)
             (out_dir / "textured" / "obj_house.obj").write_text(obj_text)
             for fname, data in extra.items():
