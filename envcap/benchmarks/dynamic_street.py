@@ -12,6 +12,8 @@ Eq. 3 (:mod:`envcap.benchmarks.dynamic_street_cost`).
 Writes ``dynamic_street.json`` (rows, summaries, terms, cost), ``dynamic_street.md`` (tables) and
 ``dynamic_street.png`` (error against sky coverage) to ``--out``.  Sun: the analytic variant (the
 sun out of the sky maps, as the evaluator's primary), ``--sun-in-sky`` adds the other.
+``--avatars also|only``: walker avatars around the positions as well / instead
+(:mod:`envcap.benchmarks.dynamic_street_avatars`, ``dynamic_street_avatars.*``).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from envcap.benchmarks.dynamic_street_avatars import avatar_section, write_avatar_files
 from envcap.benchmarks.dynamic_street_cost import gl_cost, numpy_cost
 from envcap.evaluate.dynamic_occluders import (
     DEFAULT_MODELS,
@@ -56,6 +59,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--sun-in-sky", action="store_true", help="also evaluate with the sun splatted into the sky maps")
     p.add_argument("--gl-size", type=int, default=256, help="framebuffer side of the GLSL cost pass (0: skip)")
     p.add_argument("--spheres", type=int, default=8, help="spheres per shading point in the cost passes, 0-16 (default 8)")
+    p.add_argument("--avatars", choices=("off", "also", "only"), default="off",
+                   help="walkers around the positions instead of spheres: also (a second table), only (just them)")
 
 
 def crowd_positions(manifest: Any, count: int, spacing: float) -> list[list[float]]:
@@ -140,6 +145,14 @@ def run(args: argparse.Namespace) -> int:
         sky = scene.sky.build()
         predictor = Predictor(ps, sky=sky, ctx=ctx)
         positions = crowd_positions(ps.manifest, args.positions, args.spacing)
+        if args.avatars != "off":
+            avatars = avatar_section(scene, predictor, ps.manifest.streets[0].name, positions, ctx=ctx,
+                                     resolution=args.resolution, models=args.models)
+            if args.avatars == "only":
+                with atomic_output_dir(args.out) as tmp:
+                    write_avatar_files(Path(tmp), avatars)
+                print(avatars["md"])
+                return 0
         rows, terms = evaluate_rings(scene, predictor, ps.manifest.streets[0].name, positions, rings=DEFAULT_RINGS,
                                      ctx=ctx, resolution=args.resolution, suns=suns, models=args.models)
         x = np.array(positions[0])
@@ -176,6 +189,9 @@ def run(args: argparse.Namespace) -> int:
                     + (f"{c['us_per_point'][v]:.2f} us" if k == "numpy" else f"{c['ns_per_point'][v]:.0f} ns") + " |\n"
                     for k, c in cost.items() for v, r in c["ratio_to_plain"].items()))
     with atomic_output_dir(args.out) as tmp:
+        if args.avatars != "off":
+            write_avatar_files(Path(tmp), avatars)
+            md += "\n" + avatars["md"]
         (Path(tmp) / "dynamic_street.json").write_text(json.dumps(result, indent=1))
         (Path(tmp) / "dynamic_street.md").write_text(md)
         plot(rows, args.models, Path(tmp) / "dynamic_street.png")

@@ -1,0 +1,89 @@
+"""The avatar part of ``envcap bench dynamic_street --avatars also|only``: walkers posed around
+crowd positions, fresh captures with their meshes as truth, the probes without and with the
+dynamic terms of the avatars' proxy spheres (:mod:`envcap.evaluate.dynamic_avatars`).
+
+Writes ``dynamic_street_avatars.json`` (rows, crowds, positions), ``dynamic_street_avatars.md``
+(per crowd x material, and per material over the crowds hiding >= 10 % of the visible sky) and
+``dynamic_street_avatars.png`` (error against visible sky hidden).  A helper module, not a
+benchmark of its own (no ``add_arguments``).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from envcap.evaluate.dynamic_avatars import (
+    DEFAULT_CROWDS,
+    crowd_table,
+    evaluate_avatar_crowds,
+    material_summary,
+)
+from envcap.evaluate.predict import Predictor
+
+AVATAR_POINT_HEIGHT_M = 1.0
+"""Height of the shading points among the avatars (m above the street's ground: a shoulder among
+children, a hip among adults; the walker is 1.9 m tall)."""
+
+
+def avatar_section(scene: Any, predictor: Predictor, street: str, positions: Sequence[Sequence[float]], *, ctx: Any,
+                   resolution: int, models: Sequence[str]) -> dict[str, Any]:
+    """``{"result": JSON-able dict, "md": Markdown}`` of the avatar evaluation at ``positions``
+    (their height replaced by :data:`AVATAR_POINT_HEIGHT_M` above ``street``'s ground)."""
+    t0 = time.perf_counter()
+    st = next((s for s in scene.streets if s.name == street), None)
+    ground = float(st.ground) if st is not None else 0.0
+    pts = [[float(p[0]), ground + AVATAR_POINT_HEIGHT_M, float(p[2])] for p in positions]
+    rows = evaluate_avatar_crowds(scene, predictor, street, pts, crowds=DEFAULT_CROWDS, ctx=ctx,
+                                  resolution=resolution, models=models)
+    variants = [f"{s}{'' if m is None else '+' + m}" for s in ("static", "oracle") for m in [None, *models]]
+    md = ("## Avatars: error per crowd and material (RMS over positions of relative errors, %)\n\n"
+          + crowd_table(rows, variants)
+          + "\n## Avatars: error per material (RMS over positions x crowds, %)\n\n" + material_summary(rows, variants))
+    result = {"positions": pts, "crowds": [c.label for c in DEFAULT_CROWDS], "resolution": resolution,
+              "models": list(models), "rows": rows, "total_s": time.perf_counter() - t0}
+    return {"result": result, "md": md}
+
+
+def write_avatar_files(out: Path, section: dict[str, Any]) -> None:
+    """The section's JSON, Markdown and PNG into the directory ``out`` (being written by the caller)."""
+    (out / "dynamic_street_avatars.json").write_text(json.dumps(section["result"], indent=1))
+    (out / "dynamic_street_avatars.md").write_text(section["md"])
+    plot_avatars(section["result"]["rows"], section["result"]["models"], out / "dynamic_street_avatars.png")
+
+
+def plot_avatars(rows: Sequence[dict[str, Any]], models: Sequence[str], path: Path) -> None:
+    """Error (%) against visible sky hidden (%), one panel per static source, one colour per variant."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    colors = ["#d62728", "#ff7f0e", "#9467bd", "#2ca02c", "#1f77b4", "#8c564b"]
+    for ax, src in zip(axes, ("static", "oracle")):
+        for j, v in enumerate([src] + [f"{src}+{m}" for m in models]):
+            sel = [r for r in rows if r["variant"] == v]
+            if not sel:
+                continue
+            cov = np.array([r["sky_hidden"] for r in sel]) * 100
+            err = np.array([r["rel_err"] for r in sel]) * 100
+            ax.scatter(cov, err, s=14, alpha=0.6, color="#444" if j == 0 else colors[(j - 1) % len(colors)],
+                       marker="x" if j == 0 else "o", label=v)
+        ax.axvline(10, color="k", ls=":", lw=1)
+        ax.set_xlabel("visible sky hidden by the avatars (%)")
+        ax.set_title("probes as the static part" if src == "static" else "fresh avatar-free capture as the static part",
+                     fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    axes[0].set_ylabel("Eq. 3 luminance error, relative RMS over frames (%)")
+    fig.suptitle("canyon: walkers (skinned, posed) around a point; truth = fresh capture with the meshes, "
+                 "prediction = their proxy spheres (3 materials)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
