@@ -8,6 +8,11 @@ from pathlib import Path
 
 from envcap.cli.output_options import add_force_argument, scene_input_files
 from envcap.evaluate.bounds import check_evaluation, estimate_evaluation
+from envcap.evaluate.occluder_report import (
+    OCCLUDER_KINDS,
+    append_occluder_report,
+    evaluate_occluders,
+)
 from envcap.evaluate.report import write_report
 from envcap.evaluate.result import EvaluationResult
 from envcap.evaluate.run import DEFAULT_LOBE_POWERS, evaluate_scene
@@ -64,6 +69,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lobes", type=_powers, default=None, metavar="W,...",
                    help="lobe powers, 'inf' = mirror (default inf,1024,256,64,16,4,1)")
     p.add_argument("--no-images", action="store_true", help="skip plots and image strips")
+    p.add_argument("--occluders", choices=OCCLUDER_KINDS, default="none",
+                   help="also evaluate the dynamic terms against fresh captures with rings of spheres ('ring'), "
+                        "walker avatars ('avatars') or both ('all') around crowd positions (default none)")
     add_force_argument(p)
     p.set_defaults(func=run)
 
@@ -89,8 +97,11 @@ def run(args: argparse.Namespace) -> int:
     if args.probes is not None:
         inputs.append(args.probes)
     with claim_output_dir(args.out, kind="evaluation-report", inputs=inputs, force=args.force) as out:
-        results = [evaluate_one(name, args, sweep, methods) for name in args.scene]
+        occluders: list[dict] = []
+        results = [evaluate_one(name, args, sweep, methods, occluders) for name in args.scene]
         write_report(results, out, images=not args.no_images)
+        if occluders:
+            append_occluder_report(out.path, occluders, images=not args.no_images)
     print(f"report: {out.path / 'report.md'}")
     return 0
 
@@ -107,8 +118,10 @@ def checked_methods(text: str) -> list[str]:
     return names
 
 
-def evaluate_one(name: str, args: argparse.Namespace, sweep: Sweep, methods: list[str]) -> EvaluationResult:
-    """Evaluate scene ``name`` against its probe set (``--probes``) or one baked in memory (``--bake``)."""
+def evaluate_one(name: str, args: argparse.Namespace, sweep: Sweep, methods: list[str],
+                 occluders: list[dict] | None = None) -> EvaluationResult:
+    """Evaluate scene ``name`` against its probe set (``--probes``) or one baked in memory (``--bake``);
+    with ``--occluders``, the dynamic-occluder evaluation is appended to ``occluders``."""
     scene = load_scene(name)
     if args.probes is not None:
         ps = read_probe_set(args.probes)
@@ -117,6 +130,9 @@ def evaluate_one(name: str, args: argparse.Namespace, sweep: Sweep, methods: lis
         ps = bake_probe_set(scene, resolution=args.probe_resolution, spacing=args.spacing)
     res = evaluate_scene(scene, ps, sweep=sweep, methods=methods, lobe_powers=args.lobes or DEFAULT_LOBE_POWERS,
                          resolution=args.resolution)
+    if occluders is not None and getattr(args, "occluders", "none") != "none":
+        occluders.append(evaluate_occluders(scene, ps, args.occluders,
+                                            resolution=args.resolution if args.resolution is not None else 64))
     t = res.timings
     print(f"evaluated {len(res.positions)} positions of '{scene.name}' in {t['total_s']:.1f} s "
           f"(captures {t['captures_s']:.1f} s, filtering {t['filtering_s']:.1f} s, predictions {t['predictions_s']:.1f} s, "
