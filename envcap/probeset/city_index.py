@@ -23,7 +23,6 @@ region the street map gives the street.
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -33,7 +32,7 @@ import numpy as np
 
 from envcap import __version__
 from envcap.probeset.float32_range import check_number_ranges
-from envcap.probeset.json_codec import ManifestError, from_json, to_json
+from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
 from envcap.probeset.manifest import Files, Level, LobeTable, Manifest, SceneInfo, SkyInfo, Street, Timings
 from envcap.probeset.planes import Planes
 from envcap.probeset.probe_set import ProbeSet
@@ -185,18 +184,12 @@ def read_city_index(path: str | os.PathLike[str]) -> CityIndex:
     """Read and check ``city.json`` (a file, or the city directory holding it)."""
     p = Path(path)
     p = p / INDEX_FILE if p.is_dir() else p
-    if not p.is_file():
-        raise FileNotFoundError(f"city index not found: {p}")
-    try:
-        obj = json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise ManifestError(f"{p}: not valid JSON ({e})") from e
-    return CityIndex.from_json(obj, str(p))
+    return CityIndex.from_json(read_json_file(p, "city index"), str(p))
 
 
 def city_index_text(ix: CityIndex) -> str:
     """The file content of ``ix``: 2-space indented strict JSON and a final newline."""
-    return json.dumps(ix.to_json(), indent=2, allow_nan=False) + "\n"
+    return json_text(ix.to_json())
 
 
 def street_frame_origin(st: Street) -> tuple[float, float, float]:

@@ -23,10 +23,13 @@ Every other key must be present (a default only serves Python callers).  Unknown
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+import os
 import re
 import types
 import typing
+from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
@@ -185,3 +188,20 @@ def to_json(obj: Any) -> dict[str, Any]:
         else:
             out[f.name] = _encode(v)
     return out
+
+
+def read_json_file(path: str | os.PathLike[str], what: str) -> Any:
+    """The JSON document in the file ``path``: ``FileNotFoundError`` ("``what`` not found: PATH")
+    or :class:`ManifestError` (not valid JSON, naming the file)."""
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{what} not found: {p}")
+    try:
+        return json.loads(p.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise ManifestError(f"{p}: not valid JSON ({e})") from e
+
+
+def json_text(obj: Any) -> str:
+    """A document as envcap writes its JSON files: 2-space indented strict JSON, a final newline."""
+    return json.dumps(obj, indent=2, allow_nan=False) + "\n"

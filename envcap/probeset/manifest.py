@@ -26,7 +26,7 @@ from typing import Any
 
 from envcap import __version__
 from envcap.probeset.float32_range import check_number_ranges, positive_in_float32
-from envcap.probeset.json_codec import ManifestError, from_json, to_json
+from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
 from envcap.probeset.planes import FittedPlanes, PerPlane, Planes
 
 FORMAT = "envcap-probeset"
@@ -372,19 +372,12 @@ def check_manifest(m: Manifest, where: str = "manifest") -> int:
 def read_manifest(path: str | os.PathLike[str]) -> Manifest:
     """Read and check a ``manifest.json`` (``FileNotFoundError``; ``ValueError`` naming the
     file and the field)."""
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"manifest not found: {p}")
-    try:
-        obj = json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise ManifestError(f"{p}: not valid JSON ({e})") from e
-    return Manifest.from_json(obj, str(p))
+    return Manifest.from_json(read_json_file(path, "manifest"), str(Path(path)))
 
 
 def manifest_text(m: Manifest) -> str:
     """The file content of ``m``: 2-space indented JSON and a final newline."""
-    return json.dumps(m.to_json(), indent=2, allow_nan=False) + "\n"
+    return json_text(m.to_json())
 
 
 def write_manifest(path: str | os.PathLike[str], m: Manifest) -> Path:
