@@ -28,6 +28,7 @@ import numpy as np
 
 from envcap.benchmarks.dynamic_street_avatars import avatar_section, write_avatar_files
 from envcap.benchmarks.dynamic_street_cost import gl_cost, numpy_cost
+from envcap.benchmarks.dynamic_street_plot import plot_error_vs_hidden
 from envcap.evaluate.dynamic_occluders import (
     DEFAULT_MODELS,
     DEFAULT_RINGS,
@@ -98,34 +99,9 @@ def goal_check(summary: Sequence[dict[str, Any]], statics: Sequence[str], models
 
 
 def plot(rows: Sequence[dict[str, Any]], models: Sequence[str], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
-    colors = ["#d62728", "#ff7f0e", "#9467bd", "#2ca02c", "#1f77b4", "#8c564b"]
-    for ax, src in zip(axes, ("static", "oracle")):
-        for j, v in enumerate([src] + [f"{src}+{m}" for m in models]):
-            sel = [r for r in rows if r["variant"] == v and not r["sun"]]
-            if not sel:
-                continue
-            cov = np.array([r["sky_hidden"] for r in sel]) * 100
-            err = np.array([r["rel_err"] for r in sel]) * 100
-            ax.scatter(cov, err, s=12, alpha=0.6, color="#444" if j == 0 else colors[(j - 1) % len(colors)],
-                       marker="x" if j == 0 else "o", label=v)
-        ax.axvline(10, color="k", ls=":", lw=1)
-        ax.set_xlabel("visible sky hidden by the spheres (%)")
-        ax.set_title("probes as the static part" if src == "static" else "fresh sphere-free capture as the static part",
-                     fontsize=9)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    axes[0].set_ylabel("Eq. 3 luminance error, relative RMS over frames (%)")
-    fig.suptitle("canyon: ring of spheres around a point; error against a fresh capture with the spheres "
-                 "(3 materials, analytic sun)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    """The rings' figure (:func:`plot_error_vs_hidden`, rows without the sun in the sky)."""
+    plot_error_vs_hidden(rows, models, path, "spheres", "canyon: ring of spheres around a point; error against a fresh "
+                         "capture with the spheres (3 materials, analytic sun)", with_sun=False)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
+from envcap.benchmarks.dynamic_street_plot import plot_error_vs_hidden
 from envcap.evaluate.dynamic_avatars import (
     DEFAULT_CROWDS,
     crowd_table,
@@ -59,31 +59,5 @@ def write_avatar_files(out: Path, section: dict[str, Any]) -> None:
 
 def plot_avatars(rows: Sequence[dict[str, Any]], models: Sequence[str], path: Path) -> None:
     """Error (%) against visible sky hidden (%), one panel per static source, one colour per variant."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
-    colors = ["#d62728", "#ff7f0e", "#9467bd", "#2ca02c", "#1f77b4", "#8c564b"]
-    for ax, src in zip(axes, ("static", "oracle")):
-        for j, v in enumerate([src] + [f"{src}+{m}" for m in models]):
-            sel = [r for r in rows if r["variant"] == v]
-            if not sel:
-                continue
-            cov = np.array([r["sky_hidden"] for r in sel]) * 100
-            err = np.array([r["rel_err"] for r in sel]) * 100
-            ax.scatter(cov, err, s=14, alpha=0.6, color="#444" if j == 0 else colors[(j - 1) % len(colors)],
-                       marker="x" if j == 0 else "o", label=v)
-        ax.axvline(10, color="k", ls=":", lw=1)
-        ax.set_xlabel("visible sky hidden by the avatars (%)")
-        ax.set_title("probes as the static part" if src == "static" else "fresh avatar-free capture as the static part",
-                     fontsize=9)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    axes[0].set_ylabel("Eq. 3 luminance error, relative RMS over frames (%)")
-    fig.suptitle("canyon: walkers (skinned, posed) around a point; truth = fresh capture with the meshes, "
-                 "prediction = their proxy spheres (3 materials)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    plot_error_vs_hidden(rows, models, path, "avatars", "canyon: walkers (skinned, posed) around a point; truth = fresh "
+                         "capture with the meshes, prediction = their proxy spheres (3 materials)")
