@@ -62,6 +62,13 @@ def shift_power(w: ArrayLike, ratio: ArrayLike, dtype: Any = np.float64) -> NDAr
     return np.maximum(w, dtype(0)) * (ratio * ratio)
 
 
+def scale_power(w: ArrayLike, q: ArrayLike, dtype: Any = np.float64) -> NDArray:
+    """Lobe power seen from the probe for a power multiplier ``q`` (the oblique shift's
+    ``ratio^2 cos(alpha) / cos(beta)``, :mod:`envcap.runtime.footprint`): ``max(w, 0) * q``."""
+    w = np.asarray(w, dtype=dtype)
+    return np.maximum(w, dtype(0)) * np.asarray(q, dtype=dtype)
+
+
 def clamp_level(z: ArrayLike, n: int, dtype: Any = np.float64) -> NDArray:
     """Mip level clamped to [0, n - 1]; NaN -> 0."""
     z = np.asarray(z, dtype=dtype)

@@ -20,6 +20,8 @@
 // Texture fetches per lobe: 1 probe + 1 sky (envcap_sample_*), 2 probes + 1 sky (blended); the
 // sky fetch is skipped where the street's alpha is >= 1 (the result is the same: 1 - a = 0).
 
+// ENVCAP_PROBES_SAMPLER and ENVCAP_PROBES_LOD: the probe texture of the target
+#include "runtime/envcap_probe_texture.glsl"
 #include "runtime/envcap_street.glsl"
 #include "runtime/envcap_lobes.glsl"
 
@@ -53,20 +55,20 @@ vec3 envcap_composite(vec4 street, vec3 sky)
 // from shading point x, from one probe: `layer` of `probes`, probe position p, three planes.
 // The street is sampled along the parallax vector at the shifted level z(w * ratio^2); the sky
 // along d itself at z(w) (the sky is at infinity: no parallax, no shift).
-vec3 envcap_sample_probe(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 d, float w,
+vec3 envcap_sample_probe(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w,
                          float layer, vec3 p, vec3 planes, int along,
                          float xk[ENVCAP_MAX_LEVELS], int nlevels)
 {
     vec4 par = envcap_parallax(x, d, p, planes, along);
     float zs = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, par.w), xk, nlevels), nlevels);
-    vec4 st = textureLod(probes, vec4(par.xyz, layer), zs);
+    vec4 st = ENVCAP_PROBES_LOD(probes, par.xyz, layer, zs);
     if (!(st.a < 1.0)) return st.rgb;            // street covers the lobe: no sky fetch needed
     float zk = envcap_clamp_level(envcap_z_of_w(w, xk, nlevels), nlevels);
     return envcap_composite(st, textureLod(sky, d, zk).rgb);
 }
 
 // As envcap_sample_probe, with the probe of `street` nearest to x along the street.
-vec3 envcap_sample_nearest(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+vec3 envcap_sample_nearest(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
 {
     int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
     return envcap_sample_probe(probes, sky, x, d, w, street.pos[i].w, street.pos[i].xyz, street.planes[i].xyz,
@@ -76,7 +78,7 @@ vec3 envcap_sample_nearest(samplerCubeArray probes, samplerCube sky, vec3 x, vec
 // Beyond the paper: blend the two probes that bracket x along the street, each with its own
 // parallax and mip shift, weights linear in the along-street coordinate (continuous: no
 // popping at the midpoint).  The sky term is shared.
-vec3 envcap_sample_blended(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+vec3 envcap_sample_blended(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
 {
     vec3 pr = envcap_probe_pair(x[street.along], street.along_s, street.count);
     int i0 = int(pr.x), i1 = int(pr.y);
@@ -84,11 +86,87 @@ vec3 envcap_sample_blended(samplerCubeArray probes, samplerCube sky, vec3 x, vec
     vec4 b = envcap_parallax(x, d, street.pos[i1].xyz, street.planes[i1].xyz, street.along);
     float za = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, a.w), street.xk, street.nlevels), street.nlevels);
     float zb = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, b.w), street.xk, street.nlevels), street.nlevels);
-    vec4 st = (1.0 - pr.z) * textureLod(probes, vec4(a.xyz, street.pos[i0].w), za)
-            + pr.z * textureLod(probes, vec4(b.xyz, street.pos[i1].w), zb);
+    vec4 st = (1.0 - pr.z) * ENVCAP_PROBES_LOD(probes, a.xyz, street.pos[i0].w, za)
+            + pr.z * ENVCAP_PROBES_LOD(probes, b.xyz, street.pos[i1].w, zb);
     if (!(st.a < 1.0)) return st.rgb;            // street covers the lobe: no sky fetch needed
     float zk = envcap_clamp_level(envcap_z_of_w(w, street.xk, street.nlevels), street.nlevels);
     return envcap_composite(st, textureLod(sky, d, zk).rgb);
+}
+
+// The street part of a lookup composited over the sky at d, level z(w) (skipped where alpha >= 1).
+vec3 envcap_over_sky(vec4 st, samplerCube sky, vec3 d, float w, EnvcapStreet street)
+{
+    if (!(st.a < 1.0)) return st.rgb;
+    float zk = envcap_clamp_level(envcap_z_of_w(w, street.xk, street.nlevels), street.nlevels);
+    return envcap_composite(st, textureLod(sky, d, zk).rgb);
+}
+
+// Beyond the paper: the nearest probe with the oblique mip shift w' = w ratio^2 cos(alpha)/cos(beta)
+// (envcap_parallax_oblique; method planes_mip_oblique).  Fetches: 1 probe + 1 sky, as envcap_sample_nearest.
+vec3 envcap_sample_oblique(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+{
+    int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
+    vec4 par = envcap_parallax_oblique(x, d, street.pos[i].xyz, street.planes[i].xyz, street.along);
+    float zs = envcap_clamp_level(envcap_z_of_w(max(w, 0.0) * par.w, street.xk, street.nlevels), street.nlevels);
+    return envcap_over_sky(ENVCAP_PROBES_LOD(probes, par.xyz, street.pos[i].w, zs), sky, d, w, street);
+}
+
+// Beyond the paper: the nearest probe at the level of the lobe's traced footprint (four sigma rays,
+// envcap_sigma_footprint; method planes_mip_footprint).  Fetches: 1 probe + 1 sky.
+vec3 envcap_sample_footprint(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+{
+    int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
+    vec3 r, m;
+    vec2 v = envcap_sigma_footprint(x, d, w, street.pos[i].xyz, street.planes[i].xyz, street.along, r, m);
+    float wp = envcap_footprint_power(sqrt(v.x * v.y));
+    float zs = envcap_clamp_level(envcap_z_of_w(wp, street.xk, street.nlevels), street.nlevels);
+    return envcap_over_sky(ENVCAP_PROBES_LOD(probes, r, street.pos[i].w, zs), sky, d, w, street);
+}
+
+// Beyond the paper: the traced footprint with its anisotropy, ENVCAP_ANISO_TAPS lookups along its
+// long axis (method planes_mip_aniso, docs/runtime.md).  Each tap has the variance
+// max(V_minor, V_major / (1 + (n^2 - 1) / 3)); the taps are equally spaced, mean square offset
+// V_major - V_tap.  Fetches: ENVCAP_ANISO_TAPS probes + 1 sky.
+#ifndef ENVCAP_ANISO_TAPS
+#define ENVCAP_ANISO_TAPS 2
+#endif
+vec3 envcap_sample_aniso(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+{
+    int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
+    vec3 r, m;
+    vec2 v = envcap_sigma_footprint(x, d, w, street.pos[i].xyz, street.planes[i].xyz, street.along, r, m);
+    float n = float(ENVCAP_ANISO_TAPS);
+    float vt = max(v.x, v.y / (1.0 + (n * n - 1.0) / 3.0));
+    float zs = envcap_clamp_level(envcap_z_of_w(envcap_footprint_power(vt), street.xk, street.nlevels), street.nlevels);
+    float spread = sqrt(max(v.y - vt, 0.0));
+    float step_ = n > 1.0 ? sqrt(12.0 / (n * n - 1.0)) : 0.0;
+    vec4 st = vec4(0.0);
+    for (int k = 0; k < ENVCAP_ANISO_TAPS; ++k) {
+        vec3 u = r + ((float(k) - 0.5 * (n - 1.0)) * step_ * spread) * m;
+        st += ENVCAP_PROBES_LOD(probes, u / length(u), street.pos[i].w, zs);
+    }
+    return envcap_over_sky(st / n, sky, d, w, street);
+}
+
+// Beyond the paper: four lookups where the lobe's four sigma rays land, seen from the probe (method
+// planes_mip_sigma, docs/runtime.md): taps towards r + (sqrt(F) / ENVCAP_SPREAD)(img_j - r), each at the
+// power of the variance (1 - F) V_minor, F = ENVCAP_TAP_SHARE.  They follow a footprint that a plane
+// switch splits in two.  Fetches: 4 probes + 1 sky.
+const float ENVCAP_TAP_SHARE = 0.75;
+vec3 envcap_sample_sigma(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+{
+    int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
+    vec3 r, m, img[4];
+    vec2 v = envcap_sigma_footprint_rays(x, d, w, street.pos[i].xyz, street.planes[i].xyz, street.along, r, m, img);
+    float zs = envcap_clamp_level(envcap_z_of_w(envcap_footprint_power((1.0 - ENVCAP_TAP_SHARE) * v.x), street.xk,
+                                               street.nlevels), street.nlevels);
+    float beta = sqrt(ENVCAP_TAP_SHARE) / ENVCAP_SPREAD;
+    vec4 st = vec4(0.0);
+    for (int k = 0; k < 4; ++k) {
+        vec3 u = r + beta * (img[k] - r);
+        st += ENVCAP_PROBES_LOD(probes, u / length(u), street.pos[i].w, zs);
+    }
+    return envcap_over_sky(0.25 * st, sky, d, w, street);
 }
 
 // Eq. 3 for a Lafortune BRDF  f(u, v) = rho_d / pi + sum_i rho_s[i] max(u . Cv_i, 0)^w[i]:
@@ -102,7 +180,7 @@ vec3 envcap_sample_blended(samplerCubeArray probes, samplerCube sky, vec3 x, vec
 #ifndef ENVCAP_MAX_LOBES
 #define ENVCAP_MAX_LOBES 3
 #endif
-vec3 envcap_shade_lafortune(samplerCubeArray probes, samplerCube sky, vec3 x, vec3 T, vec3 B, vec3 N,
+vec3 envcap_shade_lafortune(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 T, vec3 B, vec3 N,
                             vec3 v, vec3 rho_d, vec4 C[ENVCAP_MAX_LOBES], vec3 rho_s[ENVCAP_MAX_LOBES],
                             int nlobes, EnvcapStreet street)
 {

@@ -106,4 +106,119 @@ float envcap_shift_power(float w, float ratio)
     return max(w, 0.0) * (ratio * ratio);
 }
 
+// ---- Oblique, anisotropic mip shift (docs/runtime.md; numpy twin envcap/runtime/footprint.py) ----
+
+// Cosines of the hit angles below this are taken as this (grazing hits; the shift then clamps).
+const float ENVCAP_MIN_COS = 1.0e-4;
+// Offset of the four sigma rays of envcap_sigma_footprint, in lobe RMS tangents sqrt(2/(w+3)).
+const float ENVCAP_SPREAD = 1.3;
+
+// Three-plane parallax with the oblique (area-matched) mip shift.  Returns vec4(r, q): r as
+// envcap_parallax, q = ratio^2 cos(alpha) / cos(beta) the power multiplier (w' = w q), alpha and
+// beta the angles between the hit plane's normal and d, r.  q clamped to [1/R^2, R^2],
+// R = ENVCAP_MAX_RATIO.  Fallbacks as envcap_parallax, with q = ratio^2.
+vec4 envcap_parallax_oblique(vec3 x, vec3 d, vec3 p, vec3 planes, int along)
+{
+    int cross = 2 - along;
+    vec3 xc = envcap_clamp_to_street(x, planes, along);
+    float dc = d[cross];
+    float tc = ENVCAP_FAR;
+    if (dc > 0.0) tc = (planes.y - xc[cross]) / dc;
+    else if (dc < 0.0) tc = (planes.x - xc[cross]) / dc;
+    float tg = ENVCAP_FAR;
+    if (d.y < 0.0) tg = (planes.z - xc.y) / d.y;
+    float t = min(min(tc, tg), ENVCAP_FAR);
+    if (!(t < ENVCAP_FAR)) return vec4(d, 1.0);
+    vec3 r = (xc - p) + t * d;
+    float dp = length(r);
+    if (!(dp > ENVCAP_MIN_DIST)) return vec4(d, 1.0 / (ENVCAP_MAX_RATIO * ENVCAP_MAX_RATIO));
+    r = r / dp;
+    float ratio = min(max(dp / max(t, ENVCAP_MIN_DIST), 1.0 / ENVCAP_MAX_RATIO), ENVCAP_MAX_RATIO);
+    bool ground = tg < tc;
+    float ca = max(abs(ground ? d.y : d[cross]), ENVCAP_MIN_COS);
+    float cb = max(abs(ground ? r.y : r[cross]), ENVCAP_MIN_COS);
+    float q = ratio * ratio * (ca / cb);
+    return vec4(r, min(max(q, 1.0 / (ENVCAP_MAX_RATIO * ENVCAP_MAX_RATIO)), ENVCAP_MAX_RATIO * ENVCAP_MAX_RATIO));
+}
+
+// A basis (e1, e2) across unit v: e1 = normalize(cross(v, X)), X = +x (+y when |v.x| >= 0.9).
+void envcap_basis(vec3 v, out vec3 e1, out vec3 e2)
+{
+    vec3 X = abs(v.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+    e1 = normalize(cross(v, X));
+    e2 = cross(v, e1);
+}
+
+// The footprint of the cos^w lobe around d from x, seen from the probe at p, traced with four
+// sigma rays normalize(d +- a e_j), a = ENVCAP_SPREAD sqrt(2 / (w + 3)), through the three
+// planes.  Returns vec2(var_minor, var_major): per-axis variances of the sine of the angle to r
+// seen from the probe (a cos^W lobe has 1 / (W + 3)); r (as envcap_parallax) and the unit long
+// axis `major` (across r) are written to the out parameters.  w < 0 and NaN count as 0; w = +inf
+// gives a point footprint (0, 0).  img[j]: the four sigma rays' hits seen from the probe (unit;
+// a ray that hits no plane: its own direction), rays d + a e1, d - a e1, d + a e2, d - a e2.
+vec2 envcap_sigma_footprint_rays(vec3 x, vec3 d, float w, vec3 p, vec3 planes, int along, out vec3 r, out vec3 major,
+                                 out vec3 img[4])
+{
+    w = w > 0.0 ? w : 0.0;
+    vec3 xc = envcap_clamp_to_street(x, planes, along);
+    float t = envcap_exit_distance(xc, d, planes, along);
+    vec3 rv = (xc - p) + t * d;
+    float dp = length(rv);
+    r = (t < ENVCAP_FAR && dp > ENVCAP_MIN_DIST) ? rv / dp : d;
+    vec3 e1, e2, f1, f2;
+    envcap_basis(d, e1, e2);
+    envcap_basis(r, f1, f2);
+    float a = ENVCAP_SPREAD * sqrt(2.0 / (w + 3.0));
+    vec2 c[4];
+    for (int j = 0; j < 4; ++j) {
+        vec3 u = d + ((j == 0 || j == 2) ? a : -a) * (j < 2 ? e1 : e2);
+        u = u / length(u);
+        float tu = envcap_exit_distance(xc, u, planes, along);
+        vec3 v = (xc - p) + tu * u;
+        float vl = length(v);
+        v = (tu < ENVCAP_FAR && vl > ENVCAP_MIN_DIST) ? v / vl : u;
+        img[j] = v;
+        c[j] = vec2(dot(v, f1), dot(v, f2));
+    }
+    float k = 0.25 * (1.0 + a * a) / (ENVCAP_SPREAD * ENVCAP_SPREAD);
+    float s11 = 0.0, s22 = 0.0, s12 = 0.0, det = 0.0;
+    for (int j = 0; j < 4; ++j) {
+        s11 += c[j].x * c[j].x;
+        s22 += c[j].y * c[j].y;
+        s12 += c[j].x * c[j].y;
+        for (int l = j + 1; l < 4; ++l) {   // det by Cauchy-Binet: a sum of squares, no cancellation
+            float cb = c[j].x * c[l].y - c[j].y * c[l].x;
+            det += cb * cb;
+        }
+    }
+    s11 *= k;
+    s22 *= k;
+    s12 *= k;
+    det *= k * k;
+    float half_ = 0.5 * (s11 + s22);
+    float vmaj = half_ + sqrt(0.25 * (s11 - s22) * (s11 - s22) + s12 * s12);
+    float vmin = vmaj > 0.0 ? min(det / vmaj, vmaj) : 0.0;
+    bool first = s11 >= s22;
+    vec2 u = first ? vec2(vmaj - s22, s12) : vec2(s12, vmaj - s11);
+    float big = max(abs(u.x), abs(u.y));   // scaled first: the components may underflow when squared
+    u = big > 0.0 ? u / big : vec2(1.0, 0.0);
+    vec3 m = u.x * f1 + u.y * f2;
+    major = m / length(m);
+    return vec2(vmin, vmaj);
+}
+
+// As envcap_sigma_footprint_rays, without the rays' hits: returns vec2(var_minor, var_major).
+vec2 envcap_sigma_footprint(vec3 x, vec3 d, float w, vec3 p, vec3 planes, int along, out vec3 r, out vec3 major)
+{
+    vec3 img[4];
+    return envcap_sigma_footprint_rays(x, d, w, p, planes, along, r, major, img);
+}
+
+// Lobe power of a footprint variance v (per axis, of the sine): 1/v - 3, >= 0; v = 0 -> a power
+// above any chain's level 0 (the mirror).
+float envcap_footprint_power(float v)
+{
+    return v > 0.0 ? max(1.0 / v - 3.0, 0.0) : ENVCAP_FAR * ENVCAP_FAR;
+}
+
 #endif  // ENVCAP_STREET_GLSL

@@ -8,6 +8,13 @@
 // the street-local frame of the uniforms (StreetUniforms.to_local; see envcap_runtime.glsl).
 #include "runtime/envcap_runtime.glsl"
 
+#ifdef ENVCAP_STREET_BLOCK
+// Targets that take no loose uniforms (Vulkan): the street in one block; ENVCAP_STREET_BLOCK is
+// its qualifiers and kind (envcap.runtime.shader_targets: a std430 read-only storage buffer,
+// which spirv-cross also translates to HLSL).  The member keeps the name envcap_street.
+ENVCAP_STREET_BLOCK EnvcapStreetBlock { EnvcapStreet envcap_street; };
+#else
 uniform EnvcapStreet envcap_street;
+#endif
 
 #endif  // ENVCAP_STREET_UNIFORMS_GLSL
