@@ -1,12 +1,15 @@
 """runtime: cost of the full probe lookup (parallax + mip shift + sky) vs a plain cube-array lookup.
 
-Three fragment passes over the same full-screen grid of shading points and directions, on the
+Fragment passes over the same full-screen grid of shading points and directions, on the
 current GL driver (llvmpipe here), timed in the same run:
 
 * ``plain``: ``textureLod(probes, vec4(d, layer), z)`` (the simplest correct lookup, no parallax);
 * ``full``: ``envcap_sample_nearest`` (probe selection, three-plane parallax, mip shift in
   w-space, z(w) from the lobe table, sky composite);
-* ``blended``: ``envcap_sample_blended`` (two probes, each parallax-corrected, + sky).
+* ``blended``: ``envcap_sample_blended`` (two probes, each parallax-corrected, + sky);
+* ``oblique``, ``footprint``, ``aniso``, ``sigma``: ``envcap_sample_oblique`` / ``_footprint`` /
+  ``_aniso`` / ``_sigma`` (the oblique mip shift in closed form; the traced footprint, four sigma
+  rays; the traced footprint with 2 taps along its long axis; 4 taps where the sigma rays land).
 
 Reports median times, ratios to ``plain``, and texture fetches per lobe (``textureLod`` calls
 on each path, counted in the shader source).  Writes ``runtime.json`` and ``runtime_cost.png``
@@ -58,13 +61,27 @@ void main() {
     color = textureLod(probes, vec4(d, 0.0), envcap_z_of_w(w, envcap_street.xk, envcap_street.nlevels));
 #elif MODE == 1
     color = vec4(envcap_sample_nearest(probes, sky, x, d, w, envcap_street), 1.0);
-#else
+#elif MODE == 2
     color = vec4(envcap_sample_blended(probes, sky, x, d, w, envcap_street), 1.0);
+#elif MODE == 3
+    color = vec4(envcap_sample_oblique(probes, sky, x, d, w, envcap_street), 1.0);
+#elif MODE == 4
+    color = vec4(envcap_sample_footprint(probes, sky, x, d, w, envcap_street), 1.0);
+#elif MODE == 5
+    color = vec4(envcap_sample_aniso(probes, sky, x, d, w, envcap_street), 1.0);
+#else
+    color = vec4(envcap_sample_sigma(probes, sky, x, d, w, envcap_street), 1.0);
 #endif
 }
 """
 
-MODES = {"plain": 0, "full": 1, "blended": 2}
+MODES = {"plain": 0, "full": 1, "blended": 2, "oblique": 3, "footprint": 4, "aniso": 5, "sigma": 6}
+"""Passes: plain lookup, then the GLSL of the methods planes_mip, blend, planes_mip_oblique,
+planes_mip_footprint, planes_mip_aniso and planes_mip_sigma (docs/runtime.md, "Cost")."""
+
+
+ANISO_TAPS = 2
+"""Taps of ``envcap_sample_aniso`` (its default ``ENVCAP_ANISO_TAPS``)."""
 
 
 def fetches_per_lobe() -> dict[str, int]:
@@ -81,8 +98,16 @@ def fetches_per_lobe() -> dict[str, int]:
             i += 1
         return src[m.end():i]
 
-    probe = body("envcap_sample_probe").count("textureLod(")
-    return {"plain": 1, "full": probe, "blended": body("envcap_sample_blended").count("textureLod(")}
+    def fetches(fn: str) -> int:  # sky lookups plus probe lookups (ENVCAP_PROBES_LOD: one textureLod)
+        b = body(fn)
+        return b.count("textureLod(") + b.count("ENVCAP_PROBES_LOD(")
+
+    aniso = fetches("envcap_sample_aniso") - 1 + ANISO_TAPS     # its probe fetch is in a loop of ENVCAP_ANISO_TAPS
+    return {"plain": 1, "full": fetches("envcap_sample_probe"), "blended": fetches("envcap_sample_blended"),
+            "oblique": fetches("envcap_sample_oblique") + fetches("envcap_over_sky"),
+            "footprint": fetches("envcap_sample_footprint") + fetches("envcap_over_sky"),
+            "aniso": aniso + fetches("envcap_over_sky"),
+            "sigma": fetches("envcap_sample_sigma") - 1 + 4 + fetches("envcap_over_sky")}   # its 4 taps are a loop
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -153,9 +178,9 @@ def run(args: argparse.Namespace) -> int:
     }
     with atomic_output_dir(args.out) as tmp:
         (Path(tmp) / "runtime.json").write_text(json.dumps(result, indent=2))
-        fig, ax = plt.subplots(figsize=(5, 3))
+        fig, ax = plt.subplots(figsize=(7, 3))
         names = list(MODES)
-        ax.bar(names, [result["ratio_to_plain"][k] for k in names], color=["#888", "#4a7", "#47a"])
+        ax.bar(names, [result["ratio_to_plain"][k] for k in names], color=["#888", "#4a7", "#47a", "#a74", "#a47", "#7a4", "#74a"])
         ax.axhline(2.0, color="r", ls="--", lw=1, label="goal: 2x plain")
         ax.set_ylabel("time / plain lookup")
         ax.set_title(f"runtime lookup cost, {args.size}^2 px, {result['device'][:30]}", fontsize=8)
