@@ -22,7 +22,7 @@ from envcap.viewer.site import WEB_DIR, ViewerSite, runtime_glsl_webgl2
 CONTENT_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
                  ".css": "text/css; charset=utf-8", ".json": "application/json", ".png": "image/png",
                  ".ktx2": "image/ktx2", ".glsl": "text/plain; charset=utf-8", ".exr": "image/x-exr",
-                 ".md": "text/markdown; charset=utf-8"}
+                 ".md": "text/markdown; charset=utf-8", ".glb": "model/gltf-binary"}
 
 
 def _manifest_files(site: ViewerSite) -> dict[str, Path]:

@@ -168,7 +168,10 @@ class ViewerSite:
         doc = json.loads((self.probe_dir / "manifest.json").read_text())
         return {
             "files": {"manifest": "/set/manifest.json", "atlas": "/set/" + m.files.extra["probes_atlas"],
-                      "sky": "/set/" + m.files.sky},
+                      "sky": "/set/" + m.files.sky,
+                      **({"scene": "/set/" + m.files.extra["scene_gltf"]}   # the bake's scene.glb, if written
+                         if isinstance(m.files.extra.get("scene_gltf"), str)
+                         and (self.probe_dir / m.files.extra["scene_gltf"]).is_file() else {})},
             "resolution": m.resolution, "powers": [_finite(p) for p in m.lobes.powers],
             "sun": None if sun is None else list(map(float, sun.direction)),
             "sun_in_sky": bool(m.sky.sun_baked_in_map),

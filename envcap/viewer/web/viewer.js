@@ -4,6 +4,8 @@
 // the evaluation report's plots.  window.envcap is the page's API for tests and benchmarks.
 import { loadProbeSet } from "./ktx2.js";
 import { FULLSCREEN_VS, LookupRunner, bindProbes, fragmentSource, program, setStreet } from "./runtime.js";
+import { loadGlb } from "./gltf.js";
+import { DEPTH_AB, SceneRaster } from "./scene_raster.js";
 
 const SCENE_MAIN = `
 uniform vec3 cam_pos;            // street-local m
@@ -17,6 +19,7 @@ uniform float glossy_power;
 uniform float background_power;
 uniform float exposure;
 uniform int show_probes;
+uniform vec2 depth_ab;           // the projection's depth terms (scene_raster.js): spheres vs scene.glb
 out vec4 o;
 float hit_sphere(vec3 ro, vec3 rd, vec4 s) {
     vec3 oc = ro - s.xyz;
@@ -54,6 +57,8 @@ void main() {
         dir = m.w < 0.5 ? n : reflect(rd, n);
         w = m.w < 0.5 ? 1.0 : (m.w < 1.5 ? glossy_power : 1e6);
     }
+    float ze = tb * dot(rd, cam_rot[2]);   // eye-space z of the hit (< 0)
+    gl_FragDepth = hit >= 0 ? clamp(0.5 * (depth_ab.x * ze + depth_ab.y) / -ze + 0.5, 0.0, 1.0) : 1.0;
     vec3 L = marker ? vec3(4.0, 3.0, 0.6) / exposure : weight * viewer_lookup(x, dir, w);
     vec3 c = L * exposure;
     c = c / (1.0 + c);
@@ -83,6 +88,7 @@ class Viewer {
     const st = config.streets[0], p0 = st.probes[0].position, p1 = (st.probes[1] || st.probes[0]).position;
     this.cam = { pos: [(p0[0] + p1[0]) / 2, p0[1], (p0[2] + p1[2]) / 2], yaw: st.along === 0 ? 0 : Math.PI / 2, pitch: 0.05 };
     this.glossyPower = 64; this.ev = 0; this.showProbes = true;
+    this.scene = null; this.showScene = true;  // scene.glb's SceneRaster (setScene), drawn when showScene
     this.exposure0 = this.autoExposure();
     this.placeGroup();
     this.keys = new Set();
@@ -92,8 +98,10 @@ class Viewer {
     const val = (i) => (d instanceof Float32Array ? d[i] : halfToFloat(d[i]));
     let s = 0, n = 0;
     for (let i = 0; i < d.length; i += 4) { s += 0.2126 * val(i) + 0.7152 * val(i + 1) + 0.0722 * val(i + 2); ++n; }
+    this.skyMean = s / n;
     return s > 0 ? 0.5 / (s / n) : 1;
   }
+  setScene(mesh) { this.scene = new SceneRaster(this.gl, mesh, this.skyMean, this.cfg.sun); }
   streetIndex() {  // the street whose box is nearest to the camera
     let best = 0, bd = Infinity;
     this.cfg.streets.forEach((s, i) => {
@@ -142,8 +150,19 @@ class Viewer {
     gl.uniform1f(U("background_power"), this.cfg.powers[0] || 1e6);
     gl.uniform1f(U("exposure"), this.exposure0 * Math.pow(2, this.ev));
     gl.uniform1i(U("show_probes"), this.showProbes ? 1 : 0);
+    gl.uniform2f(U("depth_ab"), DEPTH_AB[0], DEPTH_AB[1]);
+    gl.enable(gl.DEPTH_TEST);
+    gl.depthFunc(gl.ALWAYS);
+    gl.depthMask(true);
+    gl.clearDepth(1);
+    gl.clear(gl.DEPTH_BUFFER_BIT);
     gl.bindVertexArray(this.vao);
     gl.drawArrays(gl.TRIANGLES, 0, 3);
+    if (this.scene && this.showScene) {
+      this.scene.draw(this.cam.pos, [...right, ...up, -f[0], -f[1], -f[2]], Math.tan(0.5 * 70 * Math.PI / 180),
+                      canvas.width / canvas.height, this.exposure0 * Math.pow(2, this.ev));
+    }
+    gl.disable(gl.DEPTH_TEST);
     this.cfg.currentMethod = this.method.name;
     drawMap($("map"), this.cfg, this.cam, this.group);
     let where = `street ${st.name}  x=${this.cam.pos.map((v) => v.toFixed(1)).join(", ")} m  method ${this.method.name}`;
@@ -318,6 +337,10 @@ async function main() {
   status("loading probes ...");
   const textures = await loadProbeSet(gl, config.files);
   const viewer = new Viewer(config, library, gl, textures);
+  if (config.files.scene) {
+    status("loading scene.glb ...");
+    viewer.setScene(await loadGlb(config.files.scene));
+  }
   setupControls(viewer);
   for (const url of config.plots) {
     const fig = document.createElement("figure"), img = document.createElement("img"), cap = document.createElement("figcaption");
@@ -326,7 +349,8 @@ async function main() {
   $("plots_title").hidden = config.plots.length === 0;
   viewer.render();
   status(`${config.scene || "probe set"}: ${config.streets.length} street(s), ${config.streets.reduce((n, s) => n + s.probes.length, 0)} probes, ` +
-         `${config.resolution}\u00b2 faces, sky ${textures.skyFloat32 ? "RGBA32F" : "RGBA16F"}`);
+         `${config.resolution}\u00b2 faces, sky ${textures.skyFloat32 ? "RGBA32F" : "RGBA16F"}` +
+         (viewer.scene ? `, scene.glb ${viewer.scene.triangles} triangles` : ""));
   return viewer;
 }
 
