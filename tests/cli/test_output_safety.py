@@ -170,8 +170,10 @@ def _wait_for(path, proc, timeout=120):
 # the first completes.
 def test_a_second_run_on_the_same_output_fails_at_once_and_leaves_nothing(tmp_path):
     out = tmp_path / "out"
-    first = start_envcap("capture", "planes", "--out", out, "--resolution", "32", "--spacing", "20", "--quality", "default",
-                         "--exr")   # the work this run did before capture's defaults got faster (issue 11)
+    # enough work (a few seconds) that the first run still holds the output when the second one,
+    # a new Python process, gets to it: the faster bake of issue 11 finished 32^2 in ~1 s
+    first = start_envcap("capture", "planes", "--out", out, "--resolution", "64", "--spacing", "5", "--quality", "default",
+                         "--exr", "--previews")
     try:
         _wait_for(tmp_path / ".out.lock", first)
         second = run_envcap("capture", "planes", "--out", out, *BAKE)
