@@ -18,15 +18,15 @@ from numpy.typing import ArrayLike, NDArray
 from envcap.runtime.limits import MAX_LEVELS
 
 
-def lobe_table(powers: ArrayLike, dtype: Any = np.float64) -> NDArray:
+def lobe_table(powers: ArrayLike, dtype: Any = np.float64, most: int = MAX_LEVELS) -> NDArray:
     """``x_k = log2(1 + powers[k])`` for the GLSL uniform ``xk`` (computed in float64).
 
     ``powers`` is the manifest's strictly decreasing table of lobe powers (>= 0), at most
-    ``MAX_LEVELS`` long.  Raises ``ValueError`` otherwise.
+    ``most`` long (``MAX_LEVELS``; a rung table: ``MAX_RUNGS``).  Raises ``ValueError`` otherwise.
     """
     p = np.asarray(powers, dtype=np.float64)
-    if p.ndim != 1 or not 1 <= p.size <= MAX_LEVELS:
-        raise ValueError(f"powers must be a 1-D table of 1..{MAX_LEVELS} values, got shape {p.shape}")
+    if p.ndim != 1 or not 1 <= p.size <= most:
+        raise ValueError(f"powers must be a 1-D table of 1..{most} values, got shape {p.shape}")
     if not np.all(np.isfinite(p)) or np.any(p < 0) or np.any(np.diff(p) >= 0):
         raise ValueError(f"powers must be finite, >= 0 and strictly decreasing, got {p.tolist()}")
     return np.log2(1.0 + p).astype(dtype)

@@ -22,6 +22,7 @@ from envcap.core import cube_sampling
 from envcap.core.rungs import RungLadder, rung_ladder
 from envcap.prefilter.rungs import prefilter_rungs
 from envcap.probeset.probe_set import ProbeSet
+from envcap.runtime.mip import lobe_table, z_of_w
 
 __all__ = ["MAX_RUNGS", "RungChains", "rung_table", "rung_position", "rung_fetch", "rung_chains_of"]
 
@@ -30,31 +31,15 @@ MAX_RUNGS = 48
 
 
 def rung_table(powers: ArrayLike, dtype: Any = np.float64) -> NDArray:
-    """``xr_i = log2(1 + powers[i])`` for the GLSL uniform ``xr`` (computed in float64); ``powers``
-    strictly decreasing, finite, >= 0, at most :data:`MAX_RUNGS` long (else ``ValueError``)."""
-    p = np.asarray(powers, dtype=np.float64)
-    if p.ndim != 1 or not 1 <= p.size <= MAX_RUNGS:
-        raise ValueError(f"rung powers must be a 1-D table of 1..{MAX_RUNGS} values, got shape {p.shape}")
-    if not np.all(np.isfinite(p)) or np.any(p < 0) or np.any(np.diff(p) >= 0):
-        raise ValueError(f"rung powers must be finite, >= 0 and strictly decreasing, got {p.tolist()}")
-    return np.log2(1.0 + p).astype(dtype)
+    """``xr_i = log2(1 + powers[i])`` for the GLSL uniform ``xr``: :func:`envcap.runtime.mip.lobe_table`
+    with room for :data:`MAX_RUNGS` powers (strictly decreasing, finite, >= 0; else ``ValueError``)."""
+    return lobe_table(powers, dtype, most=MAX_RUNGS)
 
 
 def rung_position(w: ArrayLike, xr: ArrayLike, dtype: Any = np.float64) -> NDArray:
-    """Continuous rung position of power(s) ``w`` on the table ``xr`` (the GLSL loop; never raises)."""
-    xr = np.asarray(xr, dtype=dtype)
-    w = np.asarray(w, dtype=dtype)
-    n = xr.size
-    with np.errstate(invalid="ignore", over="ignore"):
-        x = np.log2(dtype(1.0) + np.where(w > 0, w, dtype(0.0)))
-    u = np.full(x.shape, dtype(n - 1), dtype=dtype)
-    done = ~(x < xr[0])
-    u[done] = 0.0
-    for k in range(1, n):
-        m = ~done & (x >= xr[k])
-        u[m] = dtype(k - 1) + (xr[k - 1] - x[m]) / (xr[k - 1] - xr[k])
-        done |= m
-    return u
+    """Continuous rung position of power(s) ``w`` on the table ``xr``: the same rule as a mip level
+    (:func:`envcap.runtime.mip.z_of_w`, the GLSL loop; never raises)."""
+    return z_of_w(w, xr, dtype)
 
 
 def rung_fetch(levels: Sequence[ArrayLike], d: ArrayLike, base: ArrayLike, w: ArrayLike, xr: ArrayLike,
