@@ -97,8 +97,8 @@ def _update_file(h: Any, value: Any) -> None:
 
 def scene_hash(scene: Scene) -> str:
     """Hex SHA-256 of what a bake reads from ``scene``: name, mesh arrays (dtype, shape, bytes,
-    origin; texture coordinates and images of a textured mesh), streets, sky table (and files it
-    names), effects."""
+    origin; texture coordinates and images of a textured mesh), streets, the shadow settings, sky
+    table (and files it names), effects."""
     h = hashlib.sha256()
     h.update(json.dumps([scene.name, sorted(scene.effects)]).encode())
     m = scene.mesh
@@ -108,6 +108,7 @@ def scene_hash(scene: Scene) -> str:
         h.update(f"{arr.dtype.str}{arr.shape}".encode())
         h.update(arr.tobytes())
     h.update(repr([dataclasses.astuple(st) for st in scene.streets]).encode())
+    h.update(repr(scene.shadows).encode())
     h.update(repr(scene.sky).encode())
     params = scene.sky.params
     if dataclasses.is_dataclass(params):

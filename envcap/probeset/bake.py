@@ -40,6 +40,7 @@ from envcap.probeset.placement import MAX_PROBES, place_probes, probe_count
 from envcap.probeset.planes import Planes, fit_planes
 from envcap.probeset.probe_set import ProbeSet
 from envcap.probeset.progress import BakeProgress
+from envcap.probeset.shadow_fit import shadow_effect_parameters
 from envcap.probeset.street_checks import (inside_geometry_warning, plane_fit_warnings,
                                           street_setup_warnings)
 from envcap.scene.model import Scene
@@ -176,7 +177,9 @@ def bake_probe_set(
 
         t0 = time.perf_counter()
         report.start("capture", len(positions))
-        cap = CubeCapture.from_scene(scene, resolution, sky=sky, ctx=ctx)
+        cap = CubeCapture.from_scene(scene, resolution, sky=sky, ctx=ctx,
+                                     effect_parameters=shadow_effect_parameters(scene))
+        shadow_texel = cap.effect_facts.get("sun_shadows.texel_m")
         try:
             captured = _capture(cap, positions, report, bool(progress) if progress is not None else True, on_captured)
         finally:
@@ -231,6 +234,7 @@ def bake_probe_set(
         levels=level_table(resolution, len(levels), powers),
         lobes=lobes,
         prefilter_quality=quality if filter_levels else None,
+        shadow_texel_m=None if shadow_texel is None else round(float(shadow_texel), 6),
         probe_height=float(height),
         probe_spacing=float(spacing),
         streets=tuple(streets),

@@ -217,6 +217,7 @@ class Manifest:
     face size of level 0 (texels); ``levels`` the mip levels in order; ``lobes`` the lobe
     ladder (``None`` -> JSON ``{}``: unfiltered); ``prefilter_quality`` the filter that made
     levels 1.. (``envcap.prefilter.QUALITIES``; ``None``: not recorded, omitted from the JSON);
+    ``shadow_texel_m`` the sun shadow map's texel size in m (``None``: no sun shadows, omitted);
     ``probe_height``, ``probe_spacing`` in m;
     ``effects`` the scene's capture effects and ``passes_run`` the capture passes run;
     ``scene`` (``None`` -> JSON ``{}``: unknown)."""
@@ -233,6 +234,7 @@ class Manifest:
     levels: tuple[Level, ...]
     lobes: LobeTable | None = field(default=None, metadata={"json": "empty_object_none"})
     prefilter_quality: str | None = field(default=None, metadata=_OMIT)
+    shadow_texel_m: float | None = field(default=None, metadata=_OMIT)
     probe_height: float
     probe_spacing: float
     streets: tuple[Street, ...]

@@ -75,6 +75,7 @@ def build_scene(spec: SceneSpec) -> Scene:
         effects=spec.effects,
         description=spec.description,
         meta=dict(stats, source=spec.source),
+        shadows=spec.shadows,
     )
 
 

@@ -5,6 +5,7 @@ World frame: right-handed, meters, +Y up, ground at y = 0.  Streets run along X 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -239,6 +240,34 @@ class Street:
         return 2 if self.axis == "x" else 0
 
 
+SHADOW_FITS = ("mesh", "streets")
+"""``[shadows] fit``: the sun's shadow map covers the whole mesh, or the streets' neighbourhood."""
+
+SHADOW_STREET_PAD_M = 60.0
+"""Meters around each street's box (along and across) that a ``fit = "streets"`` map also covers."""
+
+
+@dataclass(frozen=True)
+class ShadowSettings:
+    """A scene's ``[shadows]`` table (for the ``sun_shadows`` effect): ``fit`` one of
+    :data:`SHADOW_FITS`; ``texel_m`` the texel size (m) to reach, or ``None`` for the effect's
+    default resolution.  The defaults reproduce a scene without the table."""
+
+    texel_m: float | None = None
+    fit: str = "mesh"
+
+    def __post_init__(self) -> None:
+        if self.fit not in SHADOW_FITS:
+            raise ValueError(f"shadows.fit must be one of {list(SHADOW_FITS)}, got {self.fit!r}")
+        if self.texel_m is not None and not (math.isfinite(self.texel_m) and self.texel_m > 0):
+            raise ValueError(f"shadows.texel_m must be a positive number of meters, got {self.texel_m!r}")
+
+    @property
+    def default(self) -> bool:
+        """True when the settings change nothing (the effect's own fit and resolution)."""
+        return self.texel_m is None and self.fit == "mesh"
+
+
 @dataclass
 class Scene:
     """A city scene: geometry, streets, sky description and the effects it calls for.
@@ -246,7 +275,7 @@ class Scene:
     ``sky`` is the scene's ``[sky]`` table, parsed once at load (:class:`envcap.sky.SkySpec`);
     ``sky.build()`` makes the :class:`envcap.sky.Sky` (relative file names in it were resolved
     against the scene file's directory at load).  ``meta`` holds the build counts (buildings,
-    windows, lit windows) and the ``source`` file.
+    windows, lit windows) and the ``source`` file; ``shadows`` the ``[shadows]`` table.
     """
 
     name: str
@@ -256,6 +285,7 @@ class Scene:
     effects: frozenset[str]
     description: str = ""
     meta: dict[str, Any] = field(default_factory=dict)
+    shadows: ShadowSettings = field(default_factory=ShadowSettings)
 
     def __post_init__(self) -> None:
         try:

@@ -41,6 +41,7 @@ from envcap.scene.limits import (
     SPAN_LIMIT_M,
 )
 from envcap.scene.mesh_import import CROP_MODES, WINDING_MODES
+from envcap.scene.model import SHADOW_FITS, ShadowSettings
 from envcap.scene.table import Table
 from envcap.sky.registry import SkySpec, parse_sky_spec
 
@@ -74,6 +75,7 @@ def parse_scene(data: dict[str, Any], base_dir: Path | None = None, default_name
     mesh_value = top.raw("mesh", None)
     street_tables = top.tables("streets")
     ground_table = top.sub("ground")
+    shadows_table = top.sub("shadows")
     top.close()
 
     streets = tuple(_parse_street(t, i) for i, t in enumerate(street_tables))
@@ -91,7 +93,21 @@ def parse_scene(data: dict[str, Any], base_dir: Path | None = None, default_name
     if not streets and not meshes:
         raise ValueError("a scene needs at least one [[streets]] or a [mesh]")
     return SceneSpec(name=name, description=" ".join(description.split()), effects=effects, sky=sky,
-                     streets=streets, meshes=meshes, ground=_parse_ground(ground_table), source=source)
+                     streets=streets, meshes=meshes, ground=_parse_ground(ground_table), source=source,
+                     shadows=_parse_shadows(shadows_table))
+
+
+def _parse_shadows(t: Table | None) -> ShadowSettings:
+    """The ``[shadows]`` table (keys: texel_m, fit); none: the defaults."""
+    if t is None:
+        return ShadowSettings()
+    texel = t.raw("texel_m", None)
+    settings = ShadowSettings(
+        texel_m=None if texel is None else t.number("texel_m", positive=True, max=100.0),
+        fit=t.string("fit", "mesh", choices=SHADOW_FITS),
+    )
+    t.close()
+    return settings
 
 
 def _parse_effects(v: Any) -> frozenset[str]:

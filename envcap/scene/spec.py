@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from envcap.scene.model import Street
+from envcap.scene.model import ShadowSettings, Street
 from envcap.sky.registry import SkySpec
 
 RGB = tuple[float, float, float]
@@ -176,3 +176,4 @@ class SceneSpec:
     meshes: tuple[MeshSpec, ...]
     ground: GroundSpec | None
     source: str
+    shadows: ShadowSettings = ShadowSettings()
