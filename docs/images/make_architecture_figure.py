@@ -21,10 +21,11 @@ from import_graph import PIPELINE, import_graph  # noqa: E402
 
 # Row 0: the data path a probe takes; row 1: what it stands on; row 2: the tools around it.
 LAYOUT = {
-    "scene": (0, 0), "capture": (1, 0), "prefilter": (2, 0), "probeset": (3, 0), "runtime": (4, 0), "evaluate": (5, 0),
-    "sky": (0.5, 1), "formats": (2.5, 1), "outputs": (3.5, 1),
+    "scene": (0, 0), "capture": (1, 0), "prefilter": (2, 0), "probeset": (3, 0), "runtime": (4, 0), "dynamic": (5, 0),
+    "evaluate": (6, 0), "viewer": (7, 0),
+    "sky": (0.5, 1), "formats": (2.5, 1), "outputs": (3.5, 1), "city": (4.5, 1),
     "core": (1.5, 2), "gpu": (3, 2),
-    "cli": (5, 2), "benchmarks": (5, 1),
+    "cli": (6.5, 2), "benchmarks": (6.5, 1),
 }
 # Every stage may use these; their arrows are left out of the picture (counted in the title).
 BASE = {"core", "gpu", "outputs"}
@@ -34,14 +35,15 @@ ROLE = {
     "probeset": "manifest, bake, store", "runtime": "parallax twin + GLSL", "evaluate": "vs fresh captures",
     "sky": "sky models + sun", "formats": "KTX2, EXR, PNG writers", "outputs": "safe output dirs",
     "core": "cube, lobes, colour, checks", "gpu": "EGL, cube arrays, uniforms", "cli": "envcap COMMAND",
-    "benchmarks": "envcap bench NAME",
+    "benchmarks": "envcap bench NAME", "city": "shards, index, Dask", "dynamic": "spheres, avatars (Eq. 4-7)",
+    "viewer": "WebGL2 page",
 }
 
 
 def main() -> Path:
     g = import_graph(REPO)
     edges = sorted(g.package_edges())
-    fig, ax = plt.subplots(figsize=(15, 5.6))
+    fig, ax = plt.subplots(figsize=(19, 5.6))
     w, h = 0.86, 0.46
     for pkg in PIPELINE:
         x, y = LAYOUT[pkg]
@@ -63,9 +65,9 @@ def main() -> Path:
         ax.add_patch(FancyArrowPatch(start, end, arrowstyle="-|>", mutation_scale=10, color="#667788", lw=0.8,
                                      shrinkA=2, shrinkB=2, connectionstyle=f"arc3,rad={rad}", zorder=3))
     ax.annotate("", xy=(5.45, 0.9), xytext=(-0.45, 0.9), arrowprops=dict(arrowstyle="-|>", color="#224488", lw=2))
-    ax.text(2.5, 0.97, "the pipeline: scene -> capture -> prefilter -> probe set -> runtime -> evaluate",
+    ax.text(3.5, 0.97, "the pipeline: scene -> capture -> prefilter -> probe set -> runtime -> dynamic -> evaluate -> viewer",
             ha="center", fontsize=10, color="#224488")
-    ax.set_xlim(-0.6, 5.6)
+    ax.set_xlim(-0.6, 7.6)
     ax.set_ylim(-2.7, 1.05)
     ax.axis("off")
     ax.set_title(f"envcap packages ({len(g.modules)} modules, {len(g.cycles())} import cycles). Grey arrow: "
