@@ -10,6 +10,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from numpy.typing import NDArray
 
 from envcap.core.budget import check_count
 from envcap.probeset.planes import Planes
@@ -48,8 +52,14 @@ def probe_count(street: Street, spacing: float) -> float:
 
 
 def place_probes(street: Street, spacing: float = 5.0, height: float = 2.0, *,
-                 max_probes: int = MAX_PROBES) -> list[ProbePlacement]:
+                 max_probes: int = MAX_PROBES,
+                 ground_at: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None) -> list[ProbePlacement]:
     """Probes along ``street``'s center line at ``height`` m above its ground, ``spacing`` m apart.
+
+    The ground is ``street.ground``, or, for a street that follows the terrain
+    (``street.follow_terrain``), ``ground_at(xz)`` under each probe ((P, 2) plan points -> (P,)
+    heights, NaN where there is none: e.g. :func:`envcap.scene.ground_height.ground_heights`);
+    each probe's nominal ground plane is then at its own ground.
 
     The probes are spaced exactly ``spacing`` apart and centered on the street: there are
     ``max(1, floor(length / spacing))`` of them (:func:`probe_count`), so that each stands at
@@ -64,12 +74,25 @@ def place_probes(street: Street, spacing: float = 5.0, height: float = 2.0, *,
     count = check_count(f"probes on street '{street.name}' ({street.length:g} m at spacing {spacing:g} m)",
                         probe_count(street, spacing), max_probes, "--spacing")
     mid = 0.5 * (street.start + street.end)
-    planes = Planes(street.facade_min, street.facade_max, street.ground)
+    along = mid + (np.arange(count) - 0.5 * (count - 1)) * spacing
+    xz = np.zeros((count, 2))
+    xz[:, 0 if street.axis == "x" else 1] = along
+    xz[:, 1 if street.axis == "x" else 0] = street.center_line
+    grounds = np.full(count, float(street.ground))
+    if street.follow_terrain:
+        if ground_at is None:
+            raise ValueError(f"street '{street.name}' follows the terrain: probe placement needs the scene's mesh")
+        grounds = np.asarray(ground_at(xz), np.float64).reshape(count)
+        missing = np.flatnonzero(~np.isfinite(grounds))
+        if missing.size:
+            i = int(missing[0])
+            raise ValueError(f"street '{street.name}' follows the terrain, but no up-facing surface lies under probe {i} "
+                             f"at x = {xz[i, 0]:.2f}, z = {xz[i, 1]:.2f} m ({missing.size} probes without ground)")
     out = []
     for i in range(count):
-        along = mid + (i - 0.5 * (count - 1)) * spacing
-        pos = [0.0, street.ground + height, 0.0]
-        pos[street.along_index] = along
+        pos = [0.0, float(grounds[i]) + height, 0.0]
+        pos[street.along_index] = float(along[i])
         pos[street.cross_index] = street.center_line
+        planes = Planes(street.facade_min, street.facade_max, float(grounds[i]))
         out.append(ProbePlacement(street.name, i, (pos[0], pos[1], pos[2]), planes))
     return out

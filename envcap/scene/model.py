@@ -205,6 +205,9 @@ class Street:
     facade_max: float
     ground: float = 0.0
     center: float | None = None
+    follow_terrain: bool = False
+    """Probes stand ``height`` above the ground under each of them (:mod:`envcap.scene.ground_height`)
+    rather than above ``ground``; each probe's nominal ground plane is at that height."""
 
     def __post_init__(self) -> None:
         if self.axis not in ("x", "z"):

@@ -243,6 +243,7 @@ def _parse_street(t: Table, index: int) -> StreetSpec:
     probe_line = t.raw("probe_line", None)
     if probe_line is not None:
         probe_line = t.number("probe_line", min=cross - 0.5 * width, max=cross + 0.5 * width)
+    follow_terrain = t.boolean("follow_terrain", False)
     facade_raw = t.raw("facade", {})
     street_facade = _parse_facade(facade_raw, f"{t.where}.facade")  # validates the street's own table
     sides = []
@@ -251,7 +252,7 @@ def _parse_street(t: Table, index: int) -> StreetSpec:
         sides.append(None if st is None else _parse_side(st, facade_raw, street_facade, end - start))
     t.close()
     street = Street(name=name, axis=axis, start=start, end=end, facade_min=cross - 0.5 * width,
-                    facade_max=cross + 0.5 * width, ground=0.0, center=probe_line)
+                    facade_max=cross + 0.5 * width, ground=0.0, center=probe_line, follow_terrain=follow_terrain)
     return StreetSpec(street, sides[0], sides[1])
 
 
