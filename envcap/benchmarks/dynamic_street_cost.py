@@ -21,6 +21,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from envcap.benchmarks.runtime import VERT
 from envcap.core.resources import expand_includes
 from envcap.dynamic.spheres import SphereBuffer
 from envcap.evaluate.dynamic_terms import MODELS, shade_model
@@ -69,14 +70,6 @@ def numpy_cost(static_env: EnvironmentFn, light_env: EnvironmentFn, x: np.ndarra
             "ratio_to_plain": {k: v / out["plain"] for k, v in out.items()}}
 
 
-VERT = """#version 430
-out vec2 uv;
-void main() {
-    vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
-    uv = p;
-    gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
-}
-"""
 
 FRAG = """#version 430
 #define MODE {mode}

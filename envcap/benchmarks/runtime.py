@@ -35,6 +35,7 @@ from envcap.outputs import atomic_output_dir
 from envcap.runtime import synthetic_street as ss
 
 VERT = """#version 430
+// one triangle covering the viewport: uv in [0, 1]^2 over the screen (shared by the GLSL cost passes)
 out vec2 uv;
 void main() {
     vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2);
