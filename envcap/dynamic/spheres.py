@@ -117,8 +117,13 @@ def cap_overlap(theta1: ArrayLike, theta2: ArrayLike, beta: ArrayLike, dtype: An
     return frac.astype(dtype)
 
 
-def select_spheres(x: ArrayLike, spheres: SphereBuffer, cap: int = SPHERE_CAP, dtype: Any = np.float64) -> Selection:
-    """The ``cap`` spheres of largest solid angle seen from each point ``x`` ``(..., 3)`` (m)."""
+def select_spheres(x: ArrayLike, spheres: SphereBuffer, cap: int = SPHERE_CAP, dtype: Any = np.float64,
+                   normal: ArrayLike | None = None) -> Selection:
+    """The ``cap`` spheres of largest solid angle seen from each point ``x`` ``(..., 3)`` (m).
+
+    With ``normal`` ``(..., 3)`` (unit, or zero: no test), spheres wholly below the point's
+    horizon (``D . N <= -sin(theta)``, ``theta`` the cap's half-angle) block nothing the lobes see
+    and are not ranked: they would otherwise take the slots of the ones in front."""
     if int(cap) < 1:
         raise ValueError(f"the sphere cap must be >= 1, got {cap}")
     x = np.asarray(x, dtype=dtype)
@@ -131,11 +136,15 @@ def select_spheres(x: ArrayLike, spheres: SphereBuffer, cap: int = SPHERE_CAP, d
     if n == 0:
         return Selection(index, D, t, np.zeros(shp + (K, K), dtype=dtype))
     Dn, tn = sphere_lobe(x[..., None, :], spheres.centers.astype(dtype), spheres.radii.astype(dtype), dtype=dtype)
-    live = spheres.radii > 0
+    live = np.broadcast_to(spheres.radii > 0, tn.shape)
+    if normal is not None:
+        nrm = np.asarray(normal, dtype=dtype)[..., None, :]
+        half = np.arctan2(np.sqrt(dtype(1) + dtype(2) * tn), tn)      # cap_lobe.cap_half_angle
+        live = live & (np.sum(Dn * nrm, axis=-1) > -np.sin(half))
     key = np.where(live, tn, np.inf)
     order = np.argsort(key, axis=-1, kind="stable")[..., :K]
     k = order.shape[-1]
-    got = np.take_along_axis(live[np.broadcast_to(np.arange(n), key.shape)], order, axis=-1)
+    got = np.take_along_axis(live, order, axis=-1)
     index[..., :k] = np.where(got, order, -1)
     D[..., :k, :] = np.where(got[..., None], np.take_along_axis(Dn, order[..., None], axis=-2), D[..., :k, :])
     t[..., :k] = np.where(got, np.take_along_axis(tn, order, axis=-1), t[..., :k])

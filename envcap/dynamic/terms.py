@@ -86,7 +86,7 @@ def dynamic_terms(x: ArrayLike, frame: ArrayLike, v_local: ArrayLike, material: 
     F = np.asarray(frame, np.float64)
     v = np.asarray(v_local, np.float64)
     shp = x.shape[:-1]
-    sel = select_spheres(x, spheres, cap)
+    sel = select_spheres(x, spheres, cap, normal=F[..., 2, :])   # spheres below the horizon do not count
     live = sel.index >= 0
     albedo = np.where(live[..., None], spheres.albedo[np.maximum(sel.index, 0)] if len(spheres) else 0.0, 0.0)
     lobes = [(F[..., 2, :], np.ones(shp), np.broadcast_to(np.asarray(material.rho_d, np.float64), shp + (3,)))]

@@ -79,8 +79,9 @@ float envcap_cap_overlap(float t1, float t2, float beta)
 }
 
 // The ENVCAP_SPHERE_CAP spheres of largest solid angle (smallest t) seen from x, by insertion
-// (ties: lower index first, as numpy's stable sort).
-EnvcapSphereSet envcap_select_spheres(vec3 x)
+// (ties: lower index first, as numpy's stable sort), leaving out the spheres wholly below the
+// horizon of the unit normal (D . normal <= -sin(theta)); normal = vec3(0): none left out.
+EnvcapSphereSet envcap_select_spheres(vec3 x, vec3 normal)
 {
     EnvcapSphereSet s;
     for (int k = 0; k < ENVCAP_SPHERE_CAP; ++k) {
@@ -91,6 +92,7 @@ EnvcapSphereSet envcap_select_spheres(vec3 x)
     for (int j = 0; j < n; ++j) {
         if (!(envcap_spheres[j].w > 0.0)) continue;
         vec4 lobe = envcap_sphere_lobe(x, envcap_spheres[j]);
+        if (dot(lobe.xyz, normal) <= -sin(envcap_cap_half_angle(lobe.w))) continue;
         int slot = ENVCAP_SPHERE_CAP;
         for (int k = ENVCAP_SPHERE_CAP - 1; k >= 0; --k)
             if (s.index[k] < 0 || lobe.w < s.lobe[k].w) slot = k;
@@ -168,7 +170,7 @@ void envcap_dynamic_terms(vec3 x, vec3 T, vec3 B, vec3 N, vec3 v, vec3 rho_d, ve
 {
     blocked = vec3(0.0);
     bounced = vec3(0.0);
-    EnvcapSphereSet s = envcap_select_spheres(x);
+    EnvcapSphereSet s = envcap_select_spheres(x, N);
     if (s.index[0] < 0) return;
     vec3 vl = vec3(dot(v, T), dot(v, B), dot(v, N));
     vec4 occ[ENVCAP_SPHERE_CAP];

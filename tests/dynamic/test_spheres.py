@@ -126,8 +126,25 @@ def test_two_identical_and_two_disjoint_spheres_against_the_union_reference():
         assert errs[best] < 2e-3 and errs["overlap"] < 2e-3 and errs[best] < errs["independent"] / 4
 
 
+def test_spheres_below_the_horizon_do_not_take_the_slots(gl_ctx):
+    """Eight big spheres behind a surface (normal +Z) and one small one in front, cap 4: the one in
+    front must be kept (ranking by solid angle alone dropped it, and the terms came out 0)."""
+    behind = [[np.cos(a) * 1.5, np.sin(a) * 1.5, -2.0] for a in np.linspace(0, 2 * np.pi, 8, endpoint=False)]
+    sb = SphereBuffer(behind + [[0.0, 0.0, 3.0]], [1.2] * 8 + [0.8], [[0.5, 0.5, 0.5]] * 9)
+    sel = select_spheres(np.zeros((1, 3)), sb, cap=4, normal=np.array([[0.0, 0.0, 1.0]]))
+    np.testing.assert_array_equal(sel.index, [[8, -1, -1, -1]])
+    assert list(select_spheres(np.zeros((1, 3)), sb, cap=4).index[0]).count(8) == 0     # without the normal: dropped
+    body = """EnvcapSphereSet s = envcap_select_spheres(x[i].xyz, vec3(0.0, 0.0, 1.0));
+idx[i] = vec4(s.index[0], s.index[1], s.index[2], s.index[3]);"""
+    got = run_glsl(gl_ctx, body, {"x": np.zeros((1, 3))}, {"idx": 4}, includes=INCLUDES,
+                   defines={"ENVCAP_SPHERE_CAP": 4},
+                   uniforms={"envcap_spheres": np.c_[sb.centers, sb.radii], "envcap_sphere_albedo": sb.albedo,
+                             "envcap_sphere_count": len(sb)})
+    np.testing.assert_array_equal(got["idx"], [[8, -1, -1, -1]])
+
+
 def gl_selection(ctx, x, sb, C, w, defines):
-    body = """EnvcapSphereSet s = envcap_select_spheres(x[i].xyz);
+    body = """EnvcapSphereSet s = envcap_select_spheres(x[i].xyz, vec3(0.0));
 vec4 occ[ENVCAP_SPHERE_CAP];
 float U = envcap_sphere_shares(s, normalize(c[i].xyz), c[i].w, occ);
 idx[i] = vec4(s.index[0], s.index[1], s.index[2], s.index[3]);
