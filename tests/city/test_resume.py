@@ -71,3 +71,44 @@ def test_a_rerun_skips_finished_shards_and_new_inputs_replace_stale_ones(tmp_pat
     r = bake_city("crossing", city, BakeSettings(**SETTINGS), budget_mb=1, ctx=gl_ctx)  # both streets in one shard
     assert (r.baked, r.skipped) == (1, 0)
     assert len(list((city / "shards").iterdir())) == 1
+
+
+@pytest.mark.slow
+def test_a_worker_killed_while_it_writes_a_shard_is_replaced_and_the_bits_are_the_same(tmp_path, gl_ctx):
+    """Issue 11: "Tasks are retried on worker loss".  A worker process is SIGKILLed as soon as a
+    shard's temporary directory appears (the one with a file open in it, when seen); the scheduler
+    reschedules its task and the city has the bytes of a one-process bake."""
+    distributed = pytest.importorskip("distributed")
+    import threading
+
+    settings = BakeSettings(**{**SETTINGS, "resolution": 32})      # shards that take long enough to be caught
+    bake_city("crossing", tmp_path / "one", settings, budget_mb=0, ctx=gl_ctx)
+    out = tmp_path / "lost"
+    killed: list[int] = []
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl, \
+            distributed.Client(cl) as client:
+        pids = list(client.run(os.getpid).values())
+
+        def kill_one_mid_write() -> None:
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline and not killed:
+                shards = out / "shards"
+                if shards.is_dir() and any(p.name.startswith(".") for p in shards.iterdir()):
+                    busy = [pid for pid in pids if any("/shards/." in os.path.realpath(f"/proc/{pid}/fd/{fd}")
+                                                       for fd in os.listdir(f"/proc/{pid}/fd"))]
+                    pid = (busy or pids)[0]
+                    os.kill(pid, signal.SIGKILL)
+                    killed.append(pid)
+                time.sleep(0.002)
+
+        watcher = threading.Thread(target=kill_one_mid_write)
+        watcher.start()
+        try:
+            r = bake_city("crossing", out, settings, budget_mb=0, scheduler=cl.scheduler_address)
+        finally:
+            if not killed:
+                killed.append(-1)                                   # stops the watcher
+            watcher.join()
+    assert killed[0] in pids, "no worker was killed: the bake ended first"
+    assert r.baked == 2
+    assert tree(out) == tree(tmp_path / "one")
