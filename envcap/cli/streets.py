@@ -60,22 +60,21 @@ def _triangles(args: argparse.Namespace) -> tuple[np.ndarray, list[Path], dict[s
     return tri, inputs, mesh_table
 
 
-def _street_table(s: DetectedStreet) -> tuple[bool, str]:
+def _street_table(s: DetectedStreet) -> str:
+    """A ``[[streets]]`` table for a street within AXIS_TOL_DEG of X or Z, else a comment."""
     a = s.angle_deg % 180.0
     axis = "x" if min(a, 180.0 - a) <= AXIS_TOL_DEG else ("z" if abs(a - 90.0) <= AXIS_TOL_DEG else None)
     if axis is None:
         text = (f"# {s.name}: {s.angle_deg:.2f} deg from +X, p0 = {s.p0[0]:.2f}, {s.p0[1]:.2f}, p1 = {s.p1[0]:.2f}, "
                 f"{s.p1[1]:.2f}, width {s.width:.2f} m\n#   (not axis-aligned: capture takes streets along X or Z only for now)\n")
-        return False, text
+        return text
     k = 0 if axis == "x" else 1
     lo, hi = sorted((s.p0[k], s.p1[k]))
-    cross = 0.5 * (s.p0[1 - k] + s.p1[1 - k])     # the middle: the street may be up to AXIS_TOL_DEG off the axis
-    # the facade offsets are along the plan normal (-sin a, cos a): +Z for an X street, -X for a Z street
-    sign = 1.0 if axis == "x" else -np.cos(np.radians(a - 90.0))
-    planes = sorted(cross + sign * o for o in s.facade_offsets)
-    text = (f"[[streets]]\nname = \"{s.name}\"\naxis = \"{axis}\"\nstart = {lo:.2f}\nend = {hi:.2f}\n"
-            f"width = {planes[1] - planes[0]:.2f}\ncross = {(planes[0] + planes[1]) / 2 + 0.0:.2f}\n")
-    return True, text
+    # the middle of the centre line (the street may be up to AXIS_TOL_DEG off the axis); the
+    # facades lie symmetrically about it (street_detect centres the line between them)
+    cross = 0.5 * (s.p0[1 - k] + s.p1[1 - k])
+    return (f"[[streets]]\nname = \"{s.name}\"\naxis = \"{axis}\"\nstart = {lo:.2f}\nend = {hi:.2f}\n"
+            f"width = {s.width:.2f}\ncross = {cross + 0.0:.2f}\n")
 
 
 def _scene_toml(name: str, mesh_table: dict[str, object], streets: list[DetectedStreet]) -> str:
@@ -86,7 +85,7 @@ def _scene_toml(name: str, mesh_table: dict[str, object], streets: list[Detected
                      f"rotation_deg = {mesh_table['rotation_deg']}\noffset = [{off}]\n")
     else:
         lines.append(f"# the geometry is the scene {name!r}: copy its [mesh] / buildings tables here to bake these streets\n")
-    lines += [_street_table(s)[1] for s in streets]
+    lines += [_street_table(s) for s in streets]
     return "\n".join(lines)
 
 

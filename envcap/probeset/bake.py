@@ -43,7 +43,7 @@ from envcap.probeset.progress import BakeProgress
 from envcap.probeset.shadow_fit import shadow_effect_parameters
 from envcap.probeset.street_checks import (inside_geometry_warning, plane_fit_warnings,
                                           street_setup_warnings)
-from envcap.scene.ground_height import ground_heights
+from envcap.scene.ground_height import GroundHeights
 from envcap.scene.model import Scene
 
 
@@ -150,8 +150,9 @@ def bake_probe_set(
     count = sum(probe_count(st, spacing) for st in scene.streets)  # validates the spacing
     estimate = estimate_bake(count, resolution, filter_levels=filter_levels)
     check_bake_cost(estimate, sum(st.length for st in scene.streets), spacing, max_probes)
-    placements = [place_probes(st, spacing=spacing, height=height, max_probes=max_probes,
-                               ground_at=lambda xz: ground_heights(scene.mesh, xz)) for st in scene.streets]
+    terrain = GroundHeights(scene.mesh) if any(st.follow_terrain for st in scene.streets) else None
+    placements = [place_probes(st, spacing=spacing, height=height, max_probes=max_probes, ground_at=terrain)
+                  for st in scene.streets]
     positions = np.array([p.position for street in placements for p in street], dtype=np.float64)
     check_geometry(scene, positions)
     for line in street_setup_warnings(scene):

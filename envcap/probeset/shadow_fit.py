@@ -14,20 +14,17 @@ from typing import Any
 
 import numpy as np
 
+from envcap.formats.scene_gltf import street_boxes
 from envcap.scene.model import SHADOW_STREET_PAD_M, Scene
 
 
 def street_shadow_box(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """World box ``(lo (3,), hi (3,))`` (m) of the scene's streets, padded, over the mesh's height."""
+    """World box ``(lo (3,), hi (3,))`` (m) of the scene's streets, padded
+    (:func:`envcap.formats.scene_gltf.street_boxes`), over the mesh's height."""
+    boxes = street_boxes(scene.streets, SHADOW_STREET_PAD_M)          # (S, 4): x0, x1, z0, z1
     mesh_lo, mesh_hi = scene.mesh.world_bounds()
-    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-    for st in scene.streets:
-        a, c = st.along_index, st.cross_index
-        s_lo, s_hi = np.zeros(3), np.zeros(3)
-        s_lo[a], s_hi[a] = st.start - SHADOW_STREET_PAD_M, st.end + SHADOW_STREET_PAD_M
-        s_lo[c], s_hi[c] = st.facade_min - SHADOW_STREET_PAD_M, st.facade_max + SHADOW_STREET_PAD_M
-        lo, hi = np.minimum(lo, s_lo), np.maximum(hi, s_hi)
-    lo[1], hi[1] = min(float(mesh_lo[1]), 0.0), max(float(mesh_hi[1]), 1.0)
+    lo = np.array([boxes[:, 0].min(), min(float(mesh_lo[1]), 0.0), boxes[:, 2].min()])
+    hi = np.array([boxes[:, 1].max(), max(float(mesh_hi[1]), 1.0), boxes[:, 3].max()])
     return lo, hi
 
 
