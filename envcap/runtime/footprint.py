@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.runtime.glsl_math import dot3
 from envcap.runtime.limits import FAR, MAX_RATIO, MIN_DIST
-from envcap.runtime.parallax import check_along, clamp_to_street, exit_distance
+from envcap.runtime.parallax import check_along, clamp_to_street, exit_distance, parallax
 
 MIN_COS = 1.0e-4
 """Cosines of the hit angles below this are taken as this (grazing hits; the shift then clamps).
@@ -219,15 +219,7 @@ def sigma_footprint(x: ArrayLike, d: ArrayLike, w: ArrayLike, p: ArrayLike, plan
     w = np.broadcast_to(np.where(w > 0, w, dtype(0)), shape[:-1])   # w < 0 and NaN count as 0
     one = dtype(1)
     xc = clamp_to_street(x, planes, along, dtype)
-    t = exit_distance(xc, d, planes, along, dtype)
-    hit = t < dtype(FAR)
-    rv = (xc - p) + t[..., None] * d
-    dp = np.sqrt(dot3(rv, rv))
-    ok = hit & (dp > dtype(MIN_DIST))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.minimum(np.maximum(dp / np.maximum(t, dtype(MIN_DIST)), dtype(1.0 / MAX_RATIO)), dtype(MAX_RATIO))
-        r = np.where(ok[..., None], rv / np.where(ok, dp, one)[..., None], d)
-    ratio = np.where(ok, ratio, np.where(hit, dtype(1.0 / MAX_RATIO), one))
+    r, ratio = parallax(x, d, p, planes, along, dtype)               # the central ray, as the runtime's
     e1, e2 = _basis(d, dtype)
     f1, f2 = _basis(r, dtype)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
