@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import base64
 import json
+import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -65,7 +67,8 @@ class Chromium:
         self._proc = subprocess.Popen(
             [exe, *FLAGS, f"--window-size={width},{height}", "--remote-debugging-port=0",
              f"--user-data-dir={self._profile.name}", "about:blank"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            start_new_session=True)   # its own process group: close() stops its helper processes too
         try:
             port = self._wait_port(Path(self._profile.name) / "DevToolsActivePort")
             with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=timeout) as r:
@@ -157,13 +160,30 @@ class Chromium:
             except OSError:
                 pass
         if self._proc.poll() is None:
-            self._proc.terminate()
+            self._signal_group(signal.SIGTERM)
             try:
                 self._proc.wait(5)
             except subprocess.TimeoutExpired:
-                self._proc.kill()
+                self._signal_group(signal.SIGKILL)
                 self._proc.wait(5)
-        self._profile.cleanup()
+        # Chromium's renderer and utility processes outlive the browser process by a moment and
+        # may still write into the profile (its Cache): stop the rest of the group, then remove it
+        self._signal_group(signal.SIGKILL)
+        for attempt in range(20):
+            try:
+                self._profile.cleanup()
+                return
+            except OSError:
+                if attempt == 19:
+                    raise
+                time.sleep(0.05)
+
+    def _signal_group(self, sig: int) -> None:
+        """Send ``sig`` to Chromium's process group (started for it alone), if it still exists."""
+        try:
+            os.killpg(self._proc.pid, sig)
+        except (ProcessLookupError, PermissionError):
+            pass
 
     def __enter__(self) -> "Chromium":
         return self
