@@ -132,10 +132,16 @@ class CubeCapture:
         ``"sun_shadows.texel_m"``: the shadow map's texel size in meters)."""
 
         textured = {"ENVCAP_TEXTURED": 1} if mesh.textured and has_tris else None
+        defines = dict(textured or {})
+        for effect in self.applied_effects:
+            if effect.glsl_defines is not None:
+                defines.update(effect.glsl_defines(params[effect.name]))
+        self._fragment_source = capture_fragment_source(self.applied_effects, defines or None)
         self._prog = ctx.program(vertex_shader=shader_source("capture/capture_vert.glsl", textured),
-                                 fragment_shader=capture_fragment_source(self.applied_effects, textured))
+                                 fragment_shader=self._fragment_source)
         self._textures: list[Any] = []   # bound to units 0, 1, ... for every probe
         self._effect_objs: list[Any] = []
+        self._per_probe: list[tuple[str, Callable[[NDArray[np.float64]], Mapping[str, Any]]]] = []
         self._vao = None
         self._vbo = self._ibo = self._indirect = None
         self.chunks: TriangleChunks | None = None
@@ -177,10 +183,12 @@ class CubeCapture:
                 for name, tex in setup.textures.items():
                     units[name] = len(self._textures)
                     self._textures.append(tex)
-                set_uniforms(self._prog, {**setup.uniforms, **units})
+                set_uniforms(self._prog, {**setup.uniforms, **units}, sources=(self._fragment_source,))
                 self.effect_facts.update({f"{effect.name}.{k}": float(v) for k, v in setup.facts.items()})
                 if effect.pass_name is not None:
                     self._record(effect.pass_name, time.perf_counter() - t0)
+                if setup.per_probe is not None:   # e.g. shadow cascades that follow the probe
+                    self._per_probe.append((effect.pass_name or effect.name, setup.per_probe))
         except BaseException:
             self.release()  # a failed effect leaves no GL objects behind
             raise
@@ -243,6 +251,11 @@ class CubeCapture:
         rotation = None if yaw_deg == 0.0 else plan_rotation(yaw_deg)
         face_clip = self._face_clip if rotation is None else self._turned_face_clips(rotation)
         draws = self._face_draws(local, stats, rotation)  # CPU time in stats["cull_s"], not in "render"
+        times: dict[str, float] = {}
+        for name, hook in self._per_probe:
+            t0 = time.perf_counter()
+            set_uniforms(self._prog, hook(local))
+            times[name] = times.get(name, 0.0) + time.perf_counter() - t0
         t0 = time.perf_counter()
         self._fbo.use()
         self._fbo.viewport = (0, 0, 3 * n, 2 * n)
@@ -276,7 +289,7 @@ class CubeCapture:
         # RGB is already 0 where alpha is: the clear value, since every fragment writes |alpha| =
         # its distance >= near > 0 (it lies in the frustum, ma >= near), so a miss was never drawn.
         np.not_equal(distance, 0.0, out=rgba[..., 3], casting="unsafe")
-        return {"render": t1 - t0, "readback": t2 - t1}, stats
+        return {**times, "render": t1 - t0, "readback": t2 - t1}, stats
 
     def _turned_face_clips(self, rotation: NDArray[np.float64]) -> list[NDArray[np.float64]]:
         """Column-major face clip matrices of a cube turned by ``rotation`` (world -> cube frame):
@@ -323,8 +336,8 @@ class CubeCapture:
                          pass_times_s=dict(self.pass_times_s))
         for i in tqdm(range(count), desc="capture", unit="probe", disable=None if progress else True):
             times, _ = self._capture_into(pos[i], out.rgba[i], out.distance[i], out.backfacing[i], yaw_deg)
-            for k in ("render", "readback"):
-                out.pass_times_s[k] = out.pass_times_s.get(k, 0.0) + times[k]
+            for k, v in times.items():
+                out.pass_times_s[k] = out.pass_times_s.get(k, 0.0) + v
             if on_probe is not None:
                 on_probe(i, out)
         return out

@@ -124,13 +124,18 @@ class EffectSetup:
     for the conventions); ``textures``: sampler uniform name -> moderngl texture, bound to a unit
     of its own for every probe; ``gl_objects``: released with the capture; ``facts``: numbers a
     bake records (e.g. ``sun_shadows``' texel size in meters), collected in
-    :attr:`envcap.capture.renderer.CubeCapture.effect_facts` as ``"EFFECT.NAME"``.
+    :attr:`envcap.capture.renderer.CubeCapture.effect_facts` as ``"EFFECT.NAME"``;
+    ``per_probe`` (``None``: nothing per probe): called with each probe's position (3,) float64
+    meters relative to the origin before the probe is drawn (timed under the effect's
+    ``pass_name``); returns the uniforms that change (e.g. ``sun_shadows``' cascades that follow
+    the probe).
     """
 
     uniforms: dict[str, Any] = field(default_factory=dict)
     textures: dict[str, Any] = field(default_factory=dict)
     gl_objects: list[Any] = field(default_factory=list)
     facts: dict[str, float] = field(default_factory=dict)
+    per_probe: Callable[[NDArray[np.float64]], Mapping[str, Any]] | None = None
 
 
 @dataclass(frozen=True)
@@ -148,6 +153,10 @@ class CaptureEffect:
     glsl_declarations: str = ""
     glsl_irradiance: str = ""
     glsl_radiance: str = ""
+    glsl_defines: Callable[[Mapping[str, Any]], Mapping[str, object]] | None = None
+    """Extra names to ``#define`` in the capture shader for the effect's resolved parameters
+    (e.g. ``sun_shadows``' cascade code only where cascades can be needed); uniforms declared
+    in code they leave out may still be set (they are ignored)."""
 
     def __post_init__(self) -> None:
         if not _NAME.match(self.name):
