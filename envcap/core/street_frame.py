@@ -9,6 +9,9 @@ the frame's origin)::
     y_f =  y
     z_f = -sin(a) x + cos(a) z
 
+Positions: :func:`world_to_frame` / :func:`frame_to_world` also move the origin to the
+street's plan point ``origin_xz`` (x, z), so ``p_f = R (p - (ox, 0, oz))``.
+
 A probe of that street is captured with its cube faces along the frame's axes (+X_f, -X_f, ...,
 in OpenGL order): its texel for world direction ``d`` is the cube texel of ``R d``.  ``yaw_deg =
 0`` is the world frame itself (streets along X; a street along Z may keep the world frame too).
@@ -40,3 +43,31 @@ def to_frame(vectors: ArrayLike, yaw_deg: float) -> NDArray[np.float64]:
 def from_frame(vectors: ArrayLike, yaw_deg: float) -> NDArray[np.float64]:
     """Frame vectors (..., 3) of a street at ``yaw_deg`` back in the world (float64)."""
     return np.asarray(vectors, np.float64) @ plan_rotation(yaw_deg)
+
+
+def _origin3(origin_xz: ArrayLike) -> NDArray[np.float64]:
+    o = np.asarray(origin_xz, np.float64)
+    if o.shape != (2,) or not np.all(np.isfinite(o)):
+        raise ValueError(f"street frame origin must be 2 finite numbers (x, z), got {origin_xz!r}")
+    return np.array([o[0], 0.0, o[1]])
+
+
+def world_to_frame(points: ArrayLike, yaw_deg: float, origin_xz: ArrayLike = (0.0, 0.0)) -> NDArray[np.float64]:
+    """World points (..., 3) (m) in the frame of a street at ``yaw_deg`` whose frame origin is
+    the world plan point ``origin_xz`` = (x, z): ``R (p - (ox, 0, oz))``, float64.  Heights (y)
+    are unchanged.  ``yaw_deg = 0`` and origin (0, 0) return the points unchanged (exactly)."""
+    p = np.asarray(points, np.float64)
+    r, o = plan_rotation(yaw_deg), _origin3(origin_xz)
+    if float(yaw_deg) == 0.0 and not np.any(o):
+        return p.copy()
+    return (p - o) @ r.T
+
+
+def frame_to_world(points: ArrayLike, yaw_deg: float, origin_xz: ArrayLike = (0.0, 0.0)) -> NDArray[np.float64]:
+    """Frame points (..., 3) (m) of a street at ``yaw_deg`` with frame origin ``origin_xz`` back in
+    the world: ``R^T f + (ox, 0, oz)``, float64 (the inverse of :func:`world_to_frame`)."""
+    f = np.asarray(points, np.float64)
+    r, o = plan_rotation(yaw_deg), _origin3(origin_xz)
+    if float(yaw_deg) == 0.0 and not np.any(o):
+        return f.copy()
+    return f @ r + o

@@ -12,13 +12,16 @@ order.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
 from envcap.core import cube
+
+_OMIT = {"json": "omit_none"}
+"""Field metadata: the JSON key is absent when the value is ``None`` (:mod:`envcap.probeset.json_codec`)."""
 
 
 @dataclass(frozen=True)
@@ -35,6 +38,15 @@ class Planes:
     facade_min: float
     facade_max: float
     ground: float
+    ground_slope: float | None = field(default=None, metadata=_OMIT)
+    """Rise of the ground (m per m) along the street's +along axis (frame x for a framed street,
+    the world axis otherwise): ``y_ground(s) = ground + ground_slope * (s - s_probe)``, through
+    ``ground`` at the probe's along coordinate.  ``None`` (omitted from the JSON) or 0: horizontal."""
+
+    @property
+    def slope(self) -> float:
+        """``ground_slope`` as a number (0.0 when ``None``)."""
+        return 0.0 if self.ground_slope is None else float(self.ground_slope)
 
     def as_array(self) -> NDArray[np.float64]:
         """``(3,)`` float64 ``[facade_min, facade_max, ground]`` (m): the order of the GLSL
@@ -67,13 +79,18 @@ class FittedPlanes:
     ground: float | None
     coverage_sr: PerPlane
     spread_m: PerPlane
+    ground_slope: float | None = field(default=None, metadata=_OMIT)
+    """Fitted rise of the ground along the street (m per m, as :attr:`Planes.ground_slope`), or
+    ``None`` (omitted from the JSON) where the ground texels do not support a slope."""
 
     def merged(self, nominal: Planes) -> Planes:
-        """These planes where fitted, the ``nominal`` ones elsewhere (order not checked)."""
+        """These planes where fitted, the ``nominal`` ones elsewhere (order not checked); the
+        ground slope likewise (the fitted one, else the nominal one)."""
         return Planes(
             nominal.facade_min if self.facade_min is None else self.facade_min,
             nominal.facade_max if self.facade_max is None else self.facade_max,
             nominal.ground if self.ground is None else self.ground,
+            nominal.ground_slope if self.ground_slope is None else self.ground_slope,
         )
 
 
@@ -133,6 +150,7 @@ def fit_planes(
     min_coverage_sr: float = 0.05,
     bin_m: float = 0.05,
     max_distance: float = 500.0,
+    fit_slope: bool = False,
 ) -> FittedPlanes:
     """Fit the two facade planes and the ground plane from one probe's distance channel.
 
@@ -151,6 +169,12 @@ def fit_planes(
     building or onto windows only add votes elsewhere.  A facade must lie on its own side of the probe.
     A plane whose votes cover ``min_coverage_sr`` but form no peak of a quarter of that is not
     fitted (``None``, its coverage recorded): :func:`unfitted_but_seen` names it.
+
+    ``fit_slope`` (sloped terrain): the ground is also fitted as a line ``y = g + k (s - s_p)``
+    against the along coordinate ``s`` (axis ``axis`` of ``position``'s frame) by
+    :func:`fit_ground_line`; where it holds, ``ground = g`` and ``ground_slope = k`` (spread: the
+    residuals' MAD), and the facade votes leave out hits on that sloped ground.  Without it (the
+    default) the outputs are those of a horizontal ground, ``ground_slope`` ``None``.
     """
     if axis not in ("x", "z"):
         raise ValueError(f"street axis must be 'x' or 'z', got {axis!r}")
@@ -178,9 +202,18 @@ def fit_planes(
         return est, cov, mad
 
     ground, cg, sg = fit(dy < -0.5, hits[..., 1], p[1])
+    slope = None
+    ai = 2 - ci
+    down = (dy < -0.5) & ok
+    if fit_slope and cg >= min_coverage_sr:
+        line = fit_ground_line(hits[..., ai][down] - p[ai], hits[..., 1][down], omega[down], ground, bin_m)
+        if line is not None:
+            ground, slope, sg = line
     # Facade votes: sideways texels whose hit is not on the ground (those only spread along the
     # cross axis and would bias the mode).
     gy = ground if ground is not None else float(np.min(np.where(ok, hits[..., 1], np.inf), initial=p[1]))
+    if slope is not None:
+        gy = gy + slope * (hits[..., ai] - p[ai])
     off_ground = hits[..., 1] > gy + max(0.1, 4 * bin_m)
     sideways = (np.abs(dy) < 0.7) & off_ground
     fmax, cmax, smax = fit((dc > 0.5) & sideways, hits[..., ci], p[ci])
@@ -193,7 +226,57 @@ def fit_planes(
         ground = None
     coverage = PerPlane(round(cmin, 6), round(cmax, 6), round(cg, 6))
     spread = PerPlane(*(round(v if math.isfinite(v) else 0.0, 6) for v in (smin, smax, sg)))
-    return FittedPlanes(fmin, fmax, ground, coverage, spread)
+    return FittedPlanes(fmin, fmax, ground, coverage, spread, slope)
+
+
+SLOPE_SPAN_MIN_M = 0.5
+"""A ground line needs its votes' along coordinates to spread (weighted standard deviation) at
+least this far (m): a probe seeing only a sliver of ground says nothing of its slope."""
+SLOPE_MAX = 1.0
+"""Ground slopes steeper than this (45 deg) are not streets: no slope is fitted."""
+SLOPE_INLIERS_MIN = 0.5
+"""Share (by solid angle) of the ground votes the fitted line must hold (Tukey weight > 0)."""
+
+
+def fit_ground_line(ds: NDArray[np.float64], y: NDArray[np.float64], w: NDArray[np.float64],
+                    start: float | None, bin_m: float = 0.05, iterations: int = 30) -> tuple[float, float, float] | None:
+    """Robust line ``y = g + k ds`` through ground votes: ``ds`` (K,) m along the street from the
+    probe, ``y`` (K,) hit heights (m), ``w`` (K,) solid-angle weights (sr).
+
+    Iteratively reweighted least squares with Tukey's biweight (c = 4.685 robust sigmas, the
+    sigma at least ``bin_m``), starting horizontal at ``start`` (the ground's histogram mode;
+    the weighted median of ``y`` when ``None``).  Returns ``(g, k, MAD of the inliers'
+    residuals)`` (m, m per m, m; the MAD rounded to 1e-6), or ``None`` when the votes do not
+    support a slope: their along spread is below :data:`SLOPE_SPAN_MIN_M`, the line holds less
+    than :data:`SLOPE_INLIERS_MIN` of them, ``|k| >`` :data:`SLOPE_MAX`, or the fit is not finite.
+    """
+    if ds.size < 3 or not w.sum() > 0:
+        return None
+    mean = float(np.average(ds, weights=w))
+    if math.sqrt(float(np.average((ds - mean) ** 2, weights=w))) < SLOPE_SPAN_MIN_M:
+        return None
+    if start is None:
+        order = np.argsort(y)
+        start = float(y[order][np.searchsorted(np.cumsum(w[order]), 0.5 * w.sum())])
+    g, k = float(start), 0.0
+    tw = w
+    for _ in range(iterations):
+        r = y - (g + k * ds)
+        sigma = max(1.4826 * float(np.median(np.abs(r[tw > 0]))), bin_m)
+        u = r / (4.685 * sigma)
+        tw = w * np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
+        a = np.array([[tw.sum(), (tw * ds).sum()], [(tw * ds).sum(), (tw * ds * ds).sum()]])
+        if not abs(np.linalg.det(a)) > 1e-12 * max(1.0, float(a[0, 0] * a[1, 1])):
+            return None
+        g_new, k_new = np.linalg.solve(a, [(tw * y).sum(), (tw * ds * y).sum()])
+        done = abs(g_new - g) < 1e-9 and abs(k_new - k) < 1e-12
+        g, k = float(g_new), float(k_new)
+        if done:
+            break
+    inl = tw > 0
+    if not (math.isfinite(g) and math.isfinite(k) and abs(k) <= SLOPE_MAX and w[inl].sum() >= SLOPE_INLIERS_MIN * w.sum()):
+        return None
+    return g, k + 0.0, round(float(np.median(np.abs(y[inl] - g - k * ds[inl]))), 6)
 
 
 PLANE_NAMES = ("facade_min", "facade_max", "ground")

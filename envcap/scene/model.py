@@ -1,6 +1,7 @@
 """The in-memory scene model shared by the scene loaders, the capture and the evaluator.
 
-World frame: right-handed, meters, +Y up, ground at y = 0.  Streets run along X or Z.
+World frame: right-handed, meters, +Y up, ground at y = 0.  Streets run along X or Z, or at any
+angle in their own frame (:class:`Street`, ``yaw_deg``).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap.capture.effects import check_effects, effect_names
+from envcap.core.street_frame import frame_to_world, world_to_frame
 from envcap.sky.registry import SkySpec
 
 EFFECTS: tuple[str, ...] = effect_names()
@@ -187,14 +189,20 @@ def _joined_textures(parts: list[SceneMesh]) -> tuple[NDArray[np.float32] | None
 
 @dataclass(frozen=True)
 class Street:
-    """An axis-aligned street: the three planes of the parallax model and the probe line.
+    """A street: the three planes of the parallax model and the probe line.
 
-    ``axis`` is the world axis the street runs along ("x" or "z"); the other horizontal axis is
+    ``axis`` is the axis the street runs along ("x" or "z"); the other horizontal axis is
     the *cross axis*.  ``start`` < ``end`` are along-axis coordinates (m) of the street's ends.
     ``facade_min`` < ``facade_max`` are cross-axis coordinates (m) of the two facade planes
     (nominal building front lines).  ``ground`` is the height of the ground plane (m, normally 0).
     The probe line runs along the center ``(facade_min + facade_max) / 2`` unless ``center`` is
     given.
+
+    Streets at any angle (issue 10): a *framed* street (``yaw_deg != 0`` or ``origin_xz != (0, 0)``)
+    has its own frame (:mod:`envcap.core.street_frame`): world -> frame is ``R(yaw) (p - (ox, 0,
+    oz))``.  It must have ``axis`` "x"; ``start``/``end``/``center`` and the facades are then
+    FRAME coordinates (along = frame x, cross = frame z); ``ground`` is a height (the same in both).
+    Defaults (yaw 0, origin (0, 0)) are the world frame: every street written before keeps its meaning.
     """
 
     name: str
@@ -208,10 +216,26 @@ class Street:
     follow_terrain: bool = False
     """Probes stand ``height`` above the ground under each of them (:mod:`envcap.scene.ground_height`)
     rather than above ``ground``; each probe's nominal ground plane is at that height."""
+    yaw_deg: float = 0.0
+    """Plan angle of the street's direction, degrees from world +X toward +Z (``atan2(dz, dx)``)."""
+    origin_xz: tuple[float, float] = (0.0, 0.0)
+    """World plan point (x, z), m, that is the frame's origin (``p0`` of a TOML ``p0``/``p1`` street)."""
 
     def __post_init__(self) -> None:
         if self.axis not in ("x", "z"):
             raise ValueError(f"street '{self.name}': axis must be 'x' or 'z', got {self.axis!r}")
+        try:
+            yaw, ox, oz = float(self.yaw_deg), *(float(v) for v in self.origin_xz)
+        except (TypeError, ValueError):
+            raise ValueError(f"street '{self.name}': yaw_deg must be a number and origin_xz two numbers, "
+                             f"got {self.yaw_deg!r}, {self.origin_xz!r}") from None
+        if not all(math.isfinite(v) for v in (yaw, ox, oz)):
+            raise ValueError(f"street '{self.name}': yaw_deg and origin_xz must be finite, got {yaw}, ({ox}, {oz})")
+        object.__setattr__(self, "yaw_deg", yaw)
+        object.__setattr__(self, "origin_xz", (ox, oz))
+        if self.framed and self.axis != "x":
+            raise ValueError(f"street '{self.name}': a street with its own frame (yaw {yaw} deg, origin ({ox}, {oz})) "
+                             f"must have axis 'x' (it runs along its frame's x), got {self.axis!r}")
         vals = (self.start, self.end, self.facade_min, self.facade_max, self.ground)
         if not all(np.isfinite(vals)):
             raise ValueError(f"street '{self.name}': coordinates must be finite")
@@ -241,6 +265,35 @@ class Street:
     def cross_index(self) -> int:
         """World axis index of the cross axis (the facade planes are normal to it)."""
         return 2 if self.axis == "x" else 0
+
+    @property
+    def framed(self) -> bool:
+        """True when the street has its own frame (``yaw_deg != 0`` or ``origin_xz != (0, 0)``);
+        its coordinates are then frame coordinates, its axis "x"."""
+        return self.yaw_deg != 0.0 or self.origin_xz != (0.0, 0.0)
+
+    def to_frame(self, points: NDArray[np.floating] | Any) -> NDArray[np.float64]:
+        """World points (..., 3) (m) in this street's frame (float64; a copy of them when not framed)."""
+        return world_to_frame(points, self.yaw_deg, self.origin_xz)
+
+    def to_world(self, points: NDArray[np.floating] | Any) -> NDArray[np.float64]:
+        """Points (..., 3) (m) of this street's frame in the world (float64)."""
+        return frame_to_world(points, self.yaw_deg, self.origin_xz)
+
+    def plan_corners(self, pad: float = 0.0) -> NDArray[np.float64]:
+        """(4, 2) world plan points (x, z), m, of the street's rectangle (``start``..``end`` by
+        ``facade_min``..``facade_max``) grown by ``pad`` m on every side, in order around it."""
+        a, c = (self.start - pad, self.end + pad), (self.facade_min - pad, self.facade_max + pad)
+        loc = np.zeros((4, 3))
+        loc[:, self.along_index] = (a[0], a[1], a[1], a[0])
+        loc[:, self.cross_index] = (c[0], c[0], c[1], c[1])
+        return self.to_world(loc)[:, [0, 2]]
+
+    def plan_box(self, pad: float = 0.0) -> tuple[float, float, float, float]:
+        """World axis-aligned box ``(x0, x1, z0, z1)`` (m) of the street's rectangle grown by
+        ``pad`` m on every side (of the rectangle, before it is turned by ``yaw_deg``)."""
+        xz = self.plan_corners(pad)
+        return (float(xz[:, 0].min()), float(xz[:, 0].max()), float(xz[:, 1].min()), float(xz[:, 1].max()))
 
 
 SHADOW_FITS = ("mesh", "streets")
