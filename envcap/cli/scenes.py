@@ -56,7 +56,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"    effects {', '.join(sorted(scene.effects))}; sky {scene.sky.type}")
             for st in scene.streets:
                 print(f"    street {st.name}: along {st.axis} [{st.start:g}, {st.end:g}] m, facade planes "
-                      f"{'z' if st.axis == 'x' else 'x'} = {st.facade_min:g} / {st.facade_max:g} m, probe line {st.center_line:g}")
+                      f"{'z' if st.axis == 'x' else 'x'} = {st.facade_min:g} / {st.facade_max:g} m, probe line {st.center_line:g}"
+                      + (f" (its frame: yaw {st.yaw_deg:g} deg, origin x, z = {st.origin_xz[0]:g}, {st.origin_xz[1]:g})"
+                         if st.framed else ""))
             if args.preview:
                 out = save_previews(ctx, scene, _preview_path(args.preview, name), force=args.force)
                 print(f"    preview {out}")

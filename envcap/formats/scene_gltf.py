@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from envcap.core.street_frame import frame_to_world
 from envcap.scene.model import SceneMesh
 
 SCENE_GLB = "scene.glb"
@@ -41,7 +42,8 @@ DEFAULT_PAD_M = 60.0
 def street_boxes(streets: Sequence[Any], pad_m: float = DEFAULT_PAD_M) -> NDArray[np.float64]:
     """World x-z boxes ``(S, 4)`` float64 ``[x0, x1, z0, z1]`` meters of ``streets`` (objects with
     ``axis`` "x"|"z", ``start``, ``end`` and ``facade_min``, ``facade_max`` themselves (a scene
-    street) or in ``planes`` (a manifest street)), each grown by ``pad_m`` >= 0 meters on every side."""
+    street) or in ``planes`` (a manifest street)), each grown by ``pad_m`` >= 0 meters on every side;
+    a framed street (``yaw_deg``/``origin_xz``) gives the world box of its turned rectangle."""
     if not (np.isfinite(pad_m) and pad_m >= 0):
         raise ValueError(f"scene crop padding must be a finite number of meters >= 0, got {pad_m!r}")
     out = []
@@ -49,7 +51,12 @@ def street_boxes(streets: Sequence[Any], pad_m: float = DEFAULT_PAD_M) -> NDArra
         along = (float(st.start) - pad_m, float(st.end) + pad_m)
         fac = getattr(st, "planes", st)
         across = (float(fac.facade_min) - pad_m, float(fac.facade_max) + pad_m)
-        if st.axis == "x":
+        yaw = float(getattr(st, "frame_yaw_deg", getattr(st, "yaw_deg", 0.0)))
+        origin = tuple(getattr(st, "frame_origin_xz", getattr(st, "origin_xz", (0.0, 0.0))))
+        if st.axis == "x" and (yaw != 0.0 or tuple(origin) != (0.0, 0.0)):  # a framed street: its world plan box
+            xz = frame_to_world([[a, 0.0, c] for a in along for c in across], yaw, origin)[:, [0, 2]]
+            out.append([xz[:, 0].min(), xz[:, 0].max(), xz[:, 1].min(), xz[:, 1].max()])
+        elif st.axis == "x":
             out.append([*along, *across])
         elif st.axis == "z":
             out.append([*across, *along])

@@ -280,11 +280,7 @@ def _build_ground(builder: MeshBuilder, g: GroundSpec, streets: tuple[StreetSpec
     if g.center is None:
         pts = []
         for s in streets:
-            st = s.street
-            p0, p1 = np.zeros(3), np.zeros(3)
-            p0[st.along_index], p1[st.along_index] = st.start, st.end
-            p0[st.cross_index], p1[st.cross_index] = st.facade_min, st.facade_max
-            pts += [p0, p1]
+            pts += [np.array([x, 0.0, z]) for x, z in s.street.plan_corners()]  # world, framed streets too
         for m in parts:
             if m.positions.size:
                 pts += list(m.world_bounds())

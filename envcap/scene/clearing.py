@@ -57,6 +57,9 @@ def roadways(streets: list[Street]) -> GroundRects:
     """The roadway of every street: between its facade planes over ``[start, end]``."""
     rects = GroundRects()
     for st in streets:
+        if st.framed:  # a street at an angle: the world box around its roadway
+            rects.add(*st.plan_box())
+            continue
         rects.add_along(st.along_index, st.start, st.end, st.facade_min, st.facade_max)
     return rects
 

@@ -84,9 +84,9 @@ def _toward_street(centers: NDArray[np.float64], streets: Sequence[Street]) -> N
     for st in streets:
         a, c = st.along_index, st.cross_index
         q = np.zeros((centers.shape[0], 3))
-        q[:, a] = np.clip(centers[:, a], min(st.start, st.end), max(st.start, st.end))
+        q[:, a] = np.clip(st.to_frame(centers)[:, a], min(st.start, st.end), max(st.start, st.end))
         q[:, c] = st.center_line
-        d = (q - centers)[:, [0, 2]]
+        d = (st.to_world(q) - centers)[:, [0, 2]]  # in the street's frame, turned back to the world
         dist = np.einsum("ij,ij->i", d, d)
         closer = dist < best
         best[closer], vec[closer] = dist[closer], d[closer]

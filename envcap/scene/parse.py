@@ -8,6 +8,7 @@ documented in ``docs/scenes.md``.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -224,19 +225,11 @@ def _parse_facade(data: dict[str, Any], where: str) -> FacadeSpec:
 
 def _parse_street(t: Table, index: int) -> StreetSpec:
     name = t.string("name", f"street{index}")
-    axis = t.string("axis", choices=("x", "z"))
-    if t.has("start") or t.has("end"):
-        if t.has("length") or t.has("along_center"):
-            raise ValueError(f"{t.where}: give either start/end or along_center/length, not both")
-        start = t.number("start", min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
-        end = t.number("end", min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
+    yaw, origin = 0.0, (0.0, 0.0)
+    if t.has("p0") or t.has("p1"):
+        axis, start, end, yaw, origin = _street_ends(t)
     else:
-        length = t.number("length", positive=True, max=SPAN_LIMIT_M)
-        mid = t.number("along_center", 0.0, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
-        start, end = mid - 0.5 * length, mid + 0.5 * length
-        _check_coordinates(t.where, "along_center +- length/2", (start, end))
-    if not end > start:
-        raise ValueError(f"{t.where}: end ({end}) must be larger than start ({start})")
+        axis, start, end = _street_along(t)
     width = t.number("width", positive=True, max=SIZE_LIMIT_M)
     cross = t.number("cross", 0.0, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
     _check_coordinates(t.where, "cross +- width/2", (cross - 0.5 * width, cross + 0.5 * width))
@@ -252,8 +245,53 @@ def _parse_street(t: Table, index: int) -> StreetSpec:
         sides.append(None if st is None else _parse_side(st, facade_raw, street_facade, end - start))
     t.close()
     street = Street(name=name, axis=axis, start=start, end=end, facade_min=cross - 0.5 * width,
-                    facade_max=cross + 0.5 * width, ground=0.0, center=probe_line, follow_terrain=follow_terrain)
+                    facade_max=cross + 0.5 * width, ground=0.0, center=probe_line, follow_terrain=follow_terrain,
+                    yaw_deg=yaw, origin_xz=origin)
+    if street.framed:
+        _check_coordinates(t.where, "the street's corners", tuple(street.plan_corners().ravel()))
     return StreetSpec(street, sides[0], sides[1])
+
+
+def _street_ends(t: Table) -> tuple[str, float, float, float, tuple[float, float]]:
+    """A street given by the world plan points ``p0``, ``p1`` (x, z) of its centre line's ends:
+    ``(axis "x", start 0, end |p1 - p0|, yaw_deg = atan2(dz, dx) in degrees, origin p0)``."""
+    mixed = [k for k in ("axis", "start", "end", "length", "along_center") if t.has(k)]
+    if mixed:
+        raise ValueError(f"{t.where}: give either p0/p1 or axis with start/end (or along_center/length), "
+                         f"not both (also has {', '.join(mixed)})")
+    sides = [k for k in ("side_min", "side_max") if t.has(k)]
+    if sides:
+        raise ValueError(f"{t.where}: {'/'.join(sides)} build along an axis street; a p0/p1 street takes its "
+                         f"buildings from a [mesh]")
+    if not (t.has("p0") and t.has("p1")):
+        raise ValueError(f"{t.where}: a street by its ends needs both p0 and p1 ([x, z], m)")
+    p0 = t.vector("p0", 2, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
+    p1 = t.vector("p1", 2, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
+    dx, dz = p1[0] - p0[0], p1[1] - p0[1]
+    length = math.hypot(dx, dz)
+    if not length > 0.0:
+        raise ValueError(f"{t.where}: p0 and p1 are the same point {list(p0)}: a street needs a length")
+    if length > SPAN_LIMIT_M:
+        raise ValueError(f"{t.where}: p0 to p1 is {length:.10g} m, beyond the span limit of {SPAN_LIMIT_M:g} m")
+    return "x", 0.0, length, math.degrees(math.atan2(dz, dx)), (p0[0], p0[1])
+
+
+def _street_along(t: Table) -> tuple[str, float, float]:
+    """A street along a world axis: ``(axis, start, end)`` from start/end or along_center/length."""
+    axis = t.string("axis", choices=("x", "z"))
+    if t.has("start") or t.has("end"):
+        if t.has("length") or t.has("along_center"):
+            raise ValueError(f"{t.where}: give either start/end or along_center/length, not both")
+        start = t.number("start", min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
+        end = t.number("end", min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
+    else:
+        length = t.number("length", positive=True, max=SPAN_LIMIT_M)
+        mid = t.number("along_center", 0.0, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
+        start, end = mid - 0.5 * length, mid + 0.5 * length
+        _check_coordinates(t.where, "along_center +- length/2", (start, end))
+    if not end > start:
+        raise ValueError(f"{t.where}: end ({end}) must be larger than start ({start})")
+    return axis, start, end
 
 
 def _check_coordinates(where: str, what: str, values: tuple[float, ...]) -> None:

@@ -49,12 +49,14 @@ def _ortho(l: float, r: float, b: float, t: float, n: float, f: float) -> NDArra
 
 
 def street_view_matrix(street: Street, aspect: float) -> NDArray[np.float64]:
-    """Camera at 1.7 m on the street's probe line, 10 % in from ``start``, looking along it."""
+    """Camera at 1.7 m on the street's probe line, 10 % in from ``start``, looking along it (in
+    the street's frame, turned to the world, for a street at an angle)."""
     eye, tgt = np.zeros(3), np.zeros(3)
     eye[street.along_index] = street.start + 0.1 * street.length
     tgt[street.along_index] = street.end
     eye[street.cross_index] = tgt[street.cross_index] = street.center_line
     eye[1], tgt[1] = 1.7, 8.0
+    eye, tgt = street.to_world(eye), street.to_world(tgt)  # a framed street's frame to the world
     return _perspective(70.0, aspect, 0.1, 3000.0) @ _look_at(eye, tgt, np.array([0.0, 1.0, 0.0]))
 
 
@@ -67,7 +69,7 @@ def top_view_matrix(scene: Scene, margin: float = 20.0) -> tuple[NDArray[np.floa
             for cr in (st.facade_min - 40.0, st.facade_max + 40.0):
                 p = np.zeros(3)
                 p[a], p[c] = al, cr
-                pts.append(p)
+                pts.append(st.to_world(p))
     if not pts:
         pts = list(scene.mesh.world_bounds())
     pts = np.array(pts)
