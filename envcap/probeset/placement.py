@@ -19,6 +19,10 @@ from envcap.core.budget import check_count
 from envcap.probeset.planes import Planes
 from envcap.scene.model import Street
 
+SLOPE_STEP_MIN_M = 2.0
+"""Shortest half-baseline (m) of a probe's nominal terrain slope (:func:`slope_step`): shorter
+would read curbs and mesh steps as slope."""
+
 MAX_PROBES = 100_000
 """Most probes one bake places (all streets together, and on one street), unless the caller
 raises it (``max_probes`` of :func:`place_probes` and
@@ -59,7 +63,10 @@ def place_probes(street: Street, spacing: float = 5.0, height: float = 2.0, *,
     The ground is ``street.ground``, or, for a street that follows the terrain
     (``street.follow_terrain``), ``ground_at(xz)`` under each probe ((P, 2) plan points -> (P,)
     heights, NaN where there is none: e.g. :func:`envcap.scene.ground_height.ground_heights`);
-    each probe's nominal ground plane is then at its own ground.
+    each probe's nominal ground plane is then at its own ground, with the terrain's slope along the
+    street there (:func:`terrain_slopes`, ``Planes.ground_slope``; ``None`` for other streets).
+    A framed street (``street.framed``) places its probes in its frame (along frame x at the
+    centre line's frame z) and turns them to world positions (float64).
 
     The probes are spaced exactly ``spacing`` apart and centered on the street: there are
     ``max(1, floor(length / spacing))`` of them (:func:`probe_count`), so that each stands at
@@ -75,10 +82,9 @@ def place_probes(street: Street, spacing: float = 5.0, height: float = 2.0, *,
                         probe_count(street, spacing), max_probes, "--spacing")
     mid = 0.5 * (street.start + street.end)
     along = mid + (np.arange(count) - 0.5 * (count - 1)) * spacing
-    xz = np.zeros((count, 2))
-    xz[:, 0 if street.axis == "x" else 1] = along
-    xz[:, 1 if street.axis == "x" else 0] = street.center_line
+    xz = _plan_points(street, along)
     grounds = np.full(count, float(street.ground))
+    slopes: list[float | None] = [None] * count
     if street.follow_terrain:
         if ground_at is None:
             raise ValueError(f"street '{street.name}' follows the terrain: probe placement needs the scene's mesh")
@@ -88,11 +94,41 @@ def place_probes(street: Street, spacing: float = 5.0, height: float = 2.0, *,
             i = int(missing[0])
             raise ValueError(f"street '{street.name}' follows the terrain, but no up-facing surface lies under probe {i} "
                              f"at x = {xz[i, 0]:.2f}, z = {xz[i, 1]:.2f} m ({missing.size} probes without ground)")
+        slopes = list(terrain_slopes(street, along, grounds, spacing, ground_at))
     out = []
     for i in range(count):
-        pos = [0.0, float(grounds[i]) + height, 0.0]
-        pos[street.along_index] = float(along[i])
-        pos[street.cross_index] = street.center_line
-        planes = Planes(street.facade_min, street.facade_max, float(grounds[i]))
-        out.append(ProbePlacement(street.name, i, (pos[0], pos[1], pos[2]), planes))
+        pos = (float(xz[i, 0]), float(grounds[i]) + height, float(xz[i, 1]))
+        planes = Planes(street.facade_min, street.facade_max, float(grounds[i]), slopes[i])
+        out.append(ProbePlacement(street.name, i, pos, planes))
     return out
+
+
+def _plan_points(street: Street, along: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(P, 2) world plan points (x, z), m, of the centre line at the ``along`` coordinates (the
+    street's own frame for a framed street, turned to the world in float64)."""
+    loc = np.zeros((len(along), 3))
+    loc[:, street.along_index] = along
+    loc[:, street.cross_index] = street.center_line
+    return street.to_world(loc)[:, [0, 2]]
+
+
+def slope_step(spacing: float) -> float:
+    """Half the baseline (m) of a probe's nominal terrain slope: ``max(spacing / 2,``
+    :data:`SLOPE_STEP_MIN_M` ``)``: the slope is the mean over the probe's own stretch of street."""
+    return max(0.5 * float(spacing), SLOPE_STEP_MIN_M)
+
+
+def terrain_slopes(street: Street, along: NDArray[np.float64], grounds: NDArray[np.float64], spacing: float,
+                   ground_at: Callable[[NDArray[np.float64]], NDArray[np.float64]]) -> NDArray[np.float64]:
+    """(P,) nominal ground slope (m per m along the street's +along axis) at each probe: the
+    central difference ``(g(s + h) - g(s - h)) / 2h`` of the terrain heights on the centre line,
+    ``h =`` :func:`slope_step` (``spacing``); one-sided against the probe's own ground
+    ``grounds`` where one end has no ground, 0 where neither has.  ``along`` (P,) are the probes'
+    along coordinates; ``ground_at`` maps (Q, 2) world plan points to heights (NaN: none)."""
+    h = slope_step(spacing)
+    ends = ground_at(_plan_points(street, np.concatenate([along - h, along + h])))
+    lo, hi = np.split(np.asarray(ends, np.float64).reshape(-1), 2)
+    central = (hi - lo) / (2 * h)
+    out = np.where(np.isfinite(central), central,
+                   np.where(np.isfinite(hi), (hi - grounds) / h, np.where(np.isfinite(lo), (grounds - lo) / h, 0.0)))
+    return out + 0.0

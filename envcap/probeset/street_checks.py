@@ -1,8 +1,9 @@
 """Checks of a bake's streets against the scene: before the capture, and of the planes fitted after it.
 
 Before the capture (:func:`street_setup_warnings`): a street whose facade corridor (its length,
-its two facade planes widened by :data:`NEAR_WALL_M`) holds no wall of the scene (a triangle with
-|n_y| < 0.5), or that lies outside the walls' plan bounds altogether, is reported: that is what
+its two facade planes widened by :data:`NEAR_WALL_M`; in its own frame for a street at an angle)
+holds no wall of the scene (a triangle with |n_y| < 0.5), or whose world plan box lies outside
+the walls' plan bounds altogether, is reported: that is what
 a wrong ``up_axis``, rotation or offset of an imported mesh looks like, and such a street's probes
 can only use the nominal planes.
 
@@ -43,12 +44,24 @@ def _span(lo: float, hi: float) -> str:
     return f"{lo:.1f}..{hi:.1f}"
 
 
-def _plan(street: Street, margin: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """``(lo, hi)`` (2,) plan box (x, z) of the street's facade corridor widened by ``margin``."""
-    lo, hi = np.zeros(3), np.zeros(3)
+def _corridor(street: Street, margin: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(lo, hi)`` (3,) box of the street's facade corridor widened by ``margin`` across, in the
+    street's own coordinates (its frame for a framed street; y left open)."""
+    lo, hi = np.full(3, -np.inf), np.full(3, np.inf)
     lo[street.along_index], hi[street.along_index] = min(street.start, street.end), max(street.start, street.end)
     lo[street.cross_index], hi[street.cross_index] = street.facade_min - margin, street.facade_max + margin
-    return lo[[0, 2]], hi[[0, 2]]
+    return lo, hi
+
+
+def _plan(street: Street, margin: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(lo, hi)`` (2,) world plan box (x, z) of the street's facade corridor widened by
+    ``margin`` (the box around the turned corridor for a framed street)."""
+    lo, hi = _corridor(street, margin)
+    a, c = street.along_index, street.cross_index
+    corners = np.zeros((4, 3))
+    corners[:, a], corners[:, c] = (lo[a], hi[a], hi[a], lo[a]), (lo[c], lo[c], hi[c], hi[c])
+    xz = street.to_world(corners)[:, [0, 2]]
+    return xz.min(axis=0), xz.max(axis=0)
 
 
 def street_setup_warnings(scene: Scene) -> list[str]:
@@ -68,9 +81,11 @@ def street_setup_warnings(scene: Scene) -> list[str]:
     for st in scene.streets:
         lo, hi = _plan(st, NEAR_WALL_M)
         where = f"street '{st.name}' (x {_span(lo[0], hi[0])}, z {_span(lo[1], hi[1])} with {NEAR_WALL_M:g} m margins)"
+        c_lo, c_hi = _corridor(st, NEAR_WALL_M)
+        local = st.to_frame(np.stack([centers[:, 0], np.zeros(len(centers)), centers[:, 1]], axis=1))
         if np.any(hi < w_lo) or np.any(lo > w_hi):
             out.append(f"{where} lies outside the scene's walls: {walls}; {fix}; its probes will use the nominal planes")
-        elif not np.any(np.all((centers >= lo) & (centers <= hi), axis=1)):
+        elif not np.any(np.all((local >= c_lo) & (local <= c_hi), axis=1)):
             out.append(f"{where} has no wall near its facade planes: {walls}; {fix}; "
                        "its probes will use the nominal planes")
     return out
