@@ -4,6 +4,10 @@
   data must fit half floats, +-65504);
 * ``sky.ktx2``: plain cube map RGBA32F (the sun can exceed the half-float range).
 
+A set baked with a rung ladder (``manifest.ladder``, :class:`envcap.probeset.ladder_table.LadderTable`)
+writes its rung textures instead: ``probes.ktx2`` with ``R`` layers per probe (layer ``p R + r``)
+and ``sky.ktx2`` as an ``R``-layer cube-map array, both with the ladder's levels (down to 8^2).
+
 Both carry only the key/values the KTX 2.0 specification defines (``KTXorientation``,
 ``KTXwriter``), so that ``ktx validate`` passes them without warnings; what they are is said by
 the manifest beside them (``manifest.json``: ``files.probes``, ``files.sky``, the lobe ladder,
@@ -30,9 +34,11 @@ SKY_FILE = "sky.ktx2"
 
 def write_ktx2_textures(out_dir: Path, ps: ProbeSet) -> FileEntries:
     """Write the probe array and the sky chain under ``out_dir``; return their entries."""
-    write_ktx2(out_dir / PROBES_FILE, [np.asarray(a) for a in ps.levels], layered=True, fmt="rgba16f",
-               premultiplied=True)
-    write_ktx2(out_dir / SKY_FILE, [np.asarray(a) for a in ps.sky_levels], layered=False, fmt="rgba32f")
+    rungs = ps.rungs is not None   # a rung ladder (manifest.ladder): R layers per probe, an R-layer sky array
+    write_ktx2(out_dir / PROBES_FILE, [np.asarray(a) for a in (ps.rungs if rungs else ps.levels)], layered=True,  # type: ignore[union-attr]
+               fmt="rgba16f", premultiplied=True)
+    write_ktx2(out_dir / SKY_FILE, [np.asarray(a) for a in (ps.sky_rungs if rungs else ps.sky_levels)],  # type: ignore[union-attr]
+               layered=rungs, fmt="rgba32f")
     return {"probes": PROBES_FILE, "sky": SKY_FILE}
 
 

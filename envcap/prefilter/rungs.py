@@ -24,12 +24,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.core.color import luminance
 from envcap.core.lobes import LobeLadder
-from envcap.core.rungs import RungLadder
+from envcap.core.rungs import RungLadder, rung_ladder
 from envcap.gpu.context import create_context
 from envcap.prefilter.exact import check_finite_cube
 from envcap.prefilter.fast import Quality, prefilter_level, prefilter_many
 
-__all__ = ["prefilter_rungs", "sky_weighted_alpha"]
+__all__ = ["prefilter_rungs", "sky_weighted_alpha", "rung_textures"]
 
 
 def prefilter_rungs(cubes: ArrayLike, ladder: RungLadder, quality: Quality = "default", ctx: Any = None,
@@ -98,3 +98,21 @@ def sky_weighted_alpha(levels: list[NDArray[np.float32]], cubes: NDArray[np.floa
         if j == 0:
             alpha[0::r_per] = lv[0::r_per, ..., 3]   # rung 0: the capture's own alpha
         lv[..., 3] = alpha
+
+
+def rung_textures(cubes: ArrayLike, sky: ArrayLike, mode: str, quality: Quality = "default", ctx: Any = None,
+                  progress: bool | None = None) -> tuple[RungLadder, list[NDArray[np.float32]], list[NDArray[np.float32]]]:
+    """What a bake with a rung ladder stores (``envcap capture --ladder MODE``): ``(ladder, probes,
+    sky)`` for captures ``(P, 6, N, N, 4)`` and the sky map ``(6, N, N, 4)``: ``ladder =
+    rung_ladder(N, mode)``, the probes' rung levels ``[(P R, 6, N_j, N_j, 4)]`` with sky-weighted
+    alpha for ``sky`` (:func:`sky_weighted_alpha`; plain filtered alpha where the sky has a texel of
+    luminance <= 0, e.g. a black lat-long sky) and the sky's ``[(R, 6, N_j, N_j, 4)]``."""
+    a = np.asarray(cubes)
+    s = np.asarray(sky)
+    if a.ndim != 5 or s.shape != a.shape[1:]:
+        raise ValueError(f"rung textures need captures (P, 6, N, N, 4) and a sky (6, N, N, 4) of their size, "
+                         f"got {a.shape}, {s.shape}")
+    lad = rung_ladder(a.shape[2], mode)
+    weighted = bool(np.all(luminance(np.asarray(s[..., :3], np.float64)) > 0))
+    probes = prefilter_rungs(a, lad, quality, ctx, progress, sky=s if weighted else None)
+    return lad, probes, prefilter_rungs(s, lad, quality, ctx, progress=False)

@@ -6,7 +6,9 @@ This is the main job of envcap (``envcap capture SCENE --out DIR``):
    rough time estimated and refused past their limits, the mesh and the probes checked against
    float32 range, the capture's face atlas against the GL limits (estimate printed on big jobs);
 1. the scene's sky (``scene.sky.build()``, see :class:`envcap.sky.SkySpec`) and its float32 cube;
-2. probes along each street's center line (:func:`envcap.probeset.placement.place_probes`);
+2. probes along each street's center line (:func:`envcap.probeset.placement.place_probes`; a
+   street at an angle places them in its own frame, :mod:`envcap.core.street_frame`, and its
+   probes' cubes are captured with their faces along that frame's axes, planes fitted there);
 3. HDR cube captures of all probes (:class:`envcap.capture.renderer.CubeCapture`), running only the
    passes the scene's effects call for, checked against the half-float range of ``probes.ktx2``
    (:func:`envcap.probeset.half_range.check_half_range`: one line naming the probe and the cause);
@@ -20,6 +22,7 @@ This is the main job of envcap (``envcap capture SCENE --out DIR``):
 
 from __future__ import annotations
 
+import itertools
 import sys
 import time
 from collections.abc import Callable
@@ -30,17 +33,20 @@ import numpy as np
 from envcap.capture.outputs import CaptureSet, probe_inside_geometry
 from envcap.capture.renderer import CubeCapture
 from envcap.core.checks import positive_int
-from envcap.core.lobes import lobe_ladder
+from envcap.core.lobes import Z_OF_W_RULE, lobe_ladder
+from envcap.core.rungs import LADDER_MODES
 from envcap.gpu.context import create_context
 from envcap.prefilter import prefilter_chain, prefilter_many
+from envcap.prefilter.rungs import rung_textures
 from envcap.probeset.bake_bounds import check_bake_cost, check_geometry, check_gl_limits, estimate_bake
 from envcap.probeset.half_range import check_half_range
+from envcap.probeset.ladder_table import LadderTable
 from envcap.probeset.manifest import LobeTable, Manifest, Probe, SceneInfo, SkyInfo, Street, SunInfo, Timings, level_table
 from envcap.probeset.placement import MAX_PROBES, place_probes, probe_count
 from envcap.probeset.planes import Planes, fit_planes
 from envcap.probeset.probe_set import ProbeSet
 from envcap.probeset.progress import BakeProgress
-from envcap.probeset.shadow_fit import shadow_effect_parameters
+from envcap.probeset.shadow_fit import cascade_texels, shadow_effect_parameters, shadow_summary
 from envcap.probeset.street_checks import (inside_geometry_warning, plane_fit_warnings,
                                           street_setup_warnings)
 from envcap.scene.ground_height import GroundHeights
@@ -69,19 +75,42 @@ def _log(msg: str, verbose: bool) -> None:
         print(msg, file=sys.stderr, flush=True)
 
 
-def _capture(cap: CubeCapture, positions: np.ndarray, report: BakeProgress, progress: bool,
+def _capture(cap: CubeCapture, positions: np.ndarray, yaws: np.ndarray, report: BakeProgress, progress: bool,
              on_captured: CapturedFn | None) -> CaptureSet:
-    """``cap.capture_many(positions)``, reporting each probe in the current stage and handing
-    every :data:`CAPTURE_CHUNK` probes to ``on_captured``."""
+    """``cap.capture_many(positions)`` with each probe's cube turned by its street's ``yaws``
+    (P,) degrees (one call per run of equal yaws, copied into one set when there are several),
+    reporting each probe in the current stage and handing every :data:`CAPTURE_CHUNK` probes to
+    ``on_captured``."""
     done = [0]
+    cuts = [0, *(np.flatnonzero(np.diff(yaws)) + 1).tolist(), len(positions)]
+    whole: list[CaptureSet] = []
 
-    def on_probe(i: int, out: CaptureSet) -> None:
+    def on_probe(first: int, i: int, out: CaptureSet) -> None:
+        if whole:
+            for name in ("rgba", "distance", "backfacing"):
+                getattr(whole[0], name)[first + i] = getattr(out, name)[i]
+        whole_set = whole[0] if whole else out
         report.advance()
-        if on_captured is not None and (i + 1 - done[0] >= CAPTURE_CHUNK or i + 1 == len(positions)):
-            on_captured(done[0], out.rgba[done[0]:i + 1], out.distance[done[0]:i + 1])
-            done[0] = i + 1
+        if on_captured is not None and (first + i + 1 - done[0] >= CAPTURE_CHUNK or first + i + 1 == len(positions)):
+            on_captured(done[0], whole_set.rgba[done[0]:first + i + 1], whole_set.distance[done[0]:first + i + 1])
+            done[0] = first + i + 1
 
-    return cap.capture_many(positions, progress=progress and report.mode == "off", on_probe=on_probe)
+    if len(cuts) > 2:  # several yaws: one set for all, filled as each run's probes come
+        n, p = cap.size, len(positions)
+        whole.append(CaptureSet(np.asarray(positions, np.float64), np.empty((p, 6, n, n, 4), np.float32),
+                                np.empty((p, 6, n, n), np.float32), np.empty((p, 6, n, n), bool), [], {}))
+    parts = []
+    for a, b in itertools.pairwise(cuts):
+        parts.append(cap.capture_many(positions[a:b], progress=progress and report.mode == "off",
+                                      on_probe=lambda i, out, a=a: on_probe(a, i, out), yaw_deg=float(yaws[a])))
+    if not whole:
+        return parts[0]
+    out = whole[0]
+    out.passes_run, out.pass_times_s = parts[0].passes_run, dict(parts[0].pass_times_s)
+    for part in parts[1:]:  # the per-set passes ran once, render and readback per probe
+        for k in ("render", "readback"):
+            out.pass_times_s[k] = out.pass_times_s.get(k, 0.0) + part.pass_times_s.get(k, 0.0) - cap.pass_times_s.get(k, 0.0)
+    return out
 
 
 def _prefilter_chunks(rgba: np.ndarray, ladder: Any, quality: str, ctx: Any, report: BakeProgress,
@@ -91,13 +120,13 @@ def _prefilter_chunks(rgba: np.ndarray, ladder: Any, quality: str, ctx: Any, rep
     n = rgba.shape[2]
     per = max(1, int(PREFILTER_BATCH_BYTES // (6 * n * n * 16)))
     step = per * max(1, -(-PREFILTER_CHUNK_PROBES // per)) if report.mode != "off" else len(rgba)
-    levels = [np.empty((rgba.shape[0], 6, s, s, 4), np.float32) for s in ladder.sizes]
+    # level 0 is the capture itself; the filter writes the other levels in place (no copies)
+    levels = [rgba] + [np.empty((rgba.shape[0], 6, s, s, 4), np.float32) for s in ladder.sizes[1:]]
     for i0 in range(0, len(rgba), step):
-        part = prefilter_many(rgba[i0:i0 + step], ladder, quality=quality, ctx=ctx,
-                              progress=progress if report.mode == "off" else False, batch_bytes=PREFILTER_BATCH_BYTES)
-        for lv, got in zip(levels, part):
-            lv[i0:i0 + step] = got
-        report.advance(len(part[0]))
+        chunk = rgba[i0:i0 + step]
+        prefilter_many(chunk, ladder, quality=quality, ctx=ctx, progress=progress if report.mode == "off" else False,
+                       batch_bytes=PREFILTER_BATCH_BYTES, out=[chunk] + [lv[i0:i0 + step] for lv in levels[1:]])
+        report.advance(len(chunk))
     return levels
 
 
@@ -110,6 +139,7 @@ def bake_probe_set(
     quality: str = "default",
     filter_levels: bool = True,
     sun_in_sky: bool = False,
+    ladder_mode: str = "paper",
     ctx: Any = None,
     progress: bool | None = None,
     verbose: bool = False,
@@ -122,6 +152,8 @@ def bake_probe_set(
     ``resolution``: face size N of each probe cube (texels); ``spacing``, ``height``: probe
     spacing along the street and height above its ground (m); ``quality``: prefilter quality
     (see :data:`envcap.prefilter.fast.QUALITY`); ``filter_levels=False`` stores level 0 only.
+    ``ladder_mode``: ``"paper"`` (the single chain) or a rung ladder (``"half_octave"``,
+    ``"octave"``: :func:`envcap.prefilter.rungs.rung_textures`, ``ProbeSet.rungs``, ``manifest.ladder``).
     ``sun_in_sky``: splat the sun's disk into the sky map (float32, energy-conserving).  By
     default the sky map holds the sky dome only and the sun is an analytic light in the manifest
     (``sky.sun``: direction, disk radiance, illuminance): an engine lights with it (with its own
@@ -147,6 +179,8 @@ def bake_probe_set(
     if not scene.streets:
         raise ValueError(f"scene '{scene.name}' has no streets: nothing to place probes along")
     resolution = positive_int(resolution, "probe resolution (--resolution)")
+    if ladder_mode not in LADDER_MODES or (ladder_mode != "paper" and not filter_levels):
+        raise ValueError(f"ladder mode (--ladder) must be one of {list(LADDER_MODES)} (a rung ladder needs filtered levels), got {ladder_mode!r}")
     count = sum(probe_count(st, spacing) for st in scene.streets)  # validates the spacing
     estimate = estimate_bake(count, resolution, filter_levels=filter_levels)
     check_bake_cost(estimate, sum(st.length for st in scene.streets), spacing, max_probes)
@@ -154,6 +188,7 @@ def bake_probe_set(
     placements = [place_probes(st, spacing=spacing, height=height, max_probes=max_probes, ground_at=terrain)
                   for st in scene.streets]
     positions = np.array([p.position for street in placements for p in street], dtype=np.float64)
+    yaws = np.array([st.yaw_deg for st, street in zip(scene.streets, placements) for _ in street], dtype=np.float64)
     check_geometry(scene, positions)
     for line in street_setup_warnings(scene):
         print(f"envcap: warning: {line}", file=sys.stderr)
@@ -183,8 +218,11 @@ def bake_probe_set(
         cap = CubeCapture.from_scene(scene, resolution, sky=sky, ctx=ctx,
                                      effect_parameters=shadow_effect_parameters(scene))
         shadow_texel = cap.effect_facts.get("sun_shadows.texel_m")
+        shadow_cascades = cascade_texels(cap.effect_facts)
+        if shadow_cascades is not None:
+            _log(f"{scene.name}: {shadow_summary(cap.effect_facts)}", verbose)
         try:
-            captured = _capture(cap, positions, report, bool(progress) if progress is not None else True, on_captured)
+            captured = _capture(cap, positions, yaws, report, bool(progress) if progress is not None else True, on_captured)
         finally:
             cap.release()
         timings["capture_s"] = time.perf_counter() - t0
@@ -195,7 +233,15 @@ def bake_probe_set(
 
         t0 = time.perf_counter()
         report.start("prefilter", len(positions))
-        if filter_levels:
+        rungs = sky_rungs = ladder_table = None
+        if filter_levels and ladder_mode != "paper":
+            lad, rungs, sky_rungs = rung_textures(captured.rgba, sky_rgba, ladder_mode, quality, ctx, progress)
+            levels, sky_levels = [lv[0::lad.per_level] for lv in rungs], [lv[0] for lv in sky_rungs]
+            powers = [float(w) for w in lad.powers[0::lad.per_level]]
+            lobes = LobeTable(lad.sizes, tuple(powers), Z_OF_W_RULE)   # layer r = 0 of each level
+            ladder_table = LadderTable.of(ladder_mode, lad)
+            report.advance(len(positions))
+        elif filter_levels:
             ladder = lobe_ladder(resolution)
             levels = _prefilter_chunks(captured.rgba, ladder, quality, ctx, report, progress)
             sky_levels = [lv.astype(np.float32) for lv in prefilter_chain(sky_rgba, ladder, quality=quality, ctx=ctx, progress=False)]
@@ -215,8 +261,9 @@ def bake_probe_set(
     report.start("planes", len(positions))
     for st, probes in zip(scene.streets, placements):
         entries = []
-        for p in probes:
-            fitted = fit_planes(p.position, captured.distance[layer], captured.rgba[layer, ..., 3], st.axis)
+        for p in probes:  # a framed street's cubes and planes are in its frame: fit at the probe's frame position
+            fitted = fit_planes(st.to_frame(p.position), captured.distance[layer], captured.rgba[layer, ..., 3], st.axis,
+                                fit_slope=st.follow_terrain)
             inside_flag = probe_inside_geometry(captured.backfacing[layer])
             if inside_flag:
                 warnings.append(inside_geometry_warning(st.name, p.index, p.position, captured.backfacing[layer]))
@@ -225,8 +272,9 @@ def bake_probe_set(
             report.advance()
         fits = [(e.index, e.planes, e.fitted_planes) for e in entries if e.fitted_planes is not None]
         warnings += plane_fit_warnings(st.name, st.facade_max - st.facade_min, fits)
+        frame = (st.yaw_deg, st.origin_xz) if st.framed else (None, None)
         streets.append(Street(st.name, st.axis, float(st.start), float(st.end), float(st.center_line),
-                              Planes(float(st.facade_min), float(st.facade_max), float(st.ground)), tuple(entries)))
+                              Planes(float(st.facade_min), float(st.facade_max), float(st.ground)), tuple(entries), *frame))
     report.finish()
     for line in warnings:
         print(f"envcap: warning: {line}", file=sys.stderr)
@@ -236,8 +284,10 @@ def bake_probe_set(
         resolution=resolution,
         levels=level_table(resolution, len(levels), powers),
         lobes=lobes,
+        ladder=ladder_table,
         prefilter_quality=quality if filter_levels else None,
         shadow_texel_m=None if shadow_texel is None else round(float(shadow_texel), 6),
+        shadow_cascade_texels_m=shadow_cascades,
         probe_height=float(height),
         probe_spacing=float(spacing),
         streets=tuple(streets),
@@ -247,4 +297,5 @@ def bake_probe_set(
         timings=Timings.from_json({k: round(v, 4) for k, v in timings.items()}),
         scene=SceneInfo(scene.name, scene.description, scene.mesh.triangle_count),
     )
-    return ProbeSet(manifest=manifest, levels=levels, distance=captured.distance, sky_levels=sky_levels)
+    return ProbeSet(manifest=manifest, levels=levels, distance=captured.distance, sky_levels=sky_levels,
+                    rungs=rungs, sky_rungs=sky_rungs)

@@ -1,18 +1,13 @@
 """The probe-set manifest (``manifest.json``): typed dataclasses, one reader, one writer.
 
-Format ``"envcap-probeset"``, version 1; the published JSON Schema is
-``docs/manifest.schema.json`` and the field-by-field description ``docs/formats.md``.  The
-field order of each dataclass is the key order of its JSON object, so :func:`write_manifest`
-of what :func:`read_manifest` returned gives the same bytes.
-
-* :meth:`Manifest.from_json` / :func:`read_manifest`: parse and check strictly (types, unknown
-  or missing keys, then :func:`check_manifest`); every error is one ``ValueError`` line that
-  names the field path, e.g. ``manifest.json: streets[0].probes[1].position: ...``.
-* :meth:`Manifest.to_json` / :func:`write_manifest`: plain JSON (numpy scalars converted),
-  checked by the same reader before it is returned.
-
-Units: meters for every length and position, world axes +Y up, right-handed; radiance in cd/m^2
-(linear Rec.709); times in seconds.
+Format ``"envcap-probeset"``, version 1 (JSON Schema ``docs/manifest.schema.json``, fields in
+``docs/formats.md``).  Dataclass field order = JSON key order, so :func:`write_manifest` of what
+:func:`read_manifest` returned gives the same bytes.  :meth:`Manifest.from_json` /
+:func:`read_manifest` check strictly (types, unknown or missing keys, :func:`check_manifest`),
+every error one ``ValueError`` line naming the field path (``manifest.json:
+streets[0].probes[1].position: ...``); :meth:`Manifest.to_json` / :func:`write_manifest` write
+plain JSON, checked by the same reader.  Units: meters, +Y up, right-handed; radiance cd/m^2
+(linear Rec.709); seconds.
 """
 
 from __future__ import annotations
@@ -25,8 +20,10 @@ from pathlib import Path
 from typing import Any
 
 from envcap import __version__
+from envcap.core.street_frame import world_to_frame
 from envcap.probeset.float32_range import check_number_ranges, positive_in_float32
 from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
+from envcap.probeset.ladder_table import LadderTable, check_ladder_table
 from envcap.probeset.planes import FittedPlanes, PerPlane, Planes
 
 FORMAT = "envcap-probeset"
@@ -100,7 +97,12 @@ class Probe:
 class Street:
     """One street: ``axis`` "x" or "z" (the world axis it runs along), its extent ``start`` <
     ``end`` along that axis and its center line ``center`` on the cross axis (m), its nominal
-    planes and its probes (in layer order)."""
+    planes and its probes (in layer order).
+
+    A street at any angle has its own frame (:mod:`envcap.core.street_frame`): ``yaw_deg`` (plan
+    angle of its direction from +X toward +Z) and ``origin_xz`` (world plan point of its origin),
+    omitted when ``None`` (world frame).  It has axis "x"; ``start``/``end``/``center`` and ALL
+    planes are frame coordinates, each probe's ``position`` world coordinates."""
 
     name: str
     axis: str
@@ -109,6 +111,21 @@ class Street:
     center: float
     planes: Planes
     probes: tuple[Probe, ...]
+    yaw_deg: float | None = field(default=None, metadata=_OMIT)
+    origin_xz: tuple[float, float] | None = field(default=None, metadata=_OMIT)
+
+    @property
+    def frame_yaw_deg(self) -> float:
+        """``yaw_deg`` as a number (0.0 when ``None``: the world frame)."""
+        return 0.0 if self.yaw_deg is None else float(self.yaw_deg)
+
+    @property
+    def frame_origin_xz(self) -> tuple[float, float]:
+        """``origin_xz`` as numbers ((0.0, 0.0) when ``None``)."""
+        return (0.0, 0.0) if self.origin_xz is None else (float(self.origin_xz[0]), float(self.origin_xz[1]))
+
+    framed = property(lambda self: self.frame_yaw_deg != 0.0 or self.frame_origin_xz != (0.0, 0.0),
+                      doc="True when the street has its own frame (a yaw or origin other than 0).")
 
     @property
     def along_index(self) -> int:
@@ -121,8 +138,10 @@ class Street:
         return 2 - self.along_index
 
     def probes_along(self) -> list[Probe]:
-        """The probes sorted by their coordinate along the street (the runtime's order)."""
-        return sorted(self.probes, key=lambda p: p.position[self.along_index])
+        """The probes sorted by their coordinate along the street (frame x for a framed street;
+        the runtime's order)."""
+        pos = world_to_frame([p.position for p in self.probes] or [(0.0, 0.0, 0.0)], self.frame_yaw_deg, self.frame_origin_xz)
+        return [self.probes[i] for i in sorted(range(len(self.probes)), key=lambda i: pos[i, self.along_index])]
 
 
 @dataclass(frozen=True)
@@ -218,6 +237,8 @@ class Manifest:
     ladder (``None`` -> JSON ``{}``: unfiltered); ``prefilter_quality`` the filter that made
     levels 1.. (``envcap.prefilter.QUALITIES``; ``None``: not recorded, omitted from the JSON);
     ``shadow_texel_m`` the sun shadow map's texel size in m (``None``: no sun shadows, omitted);
+    ``shadow_cascade_texels_m`` the texel (m) of each shadow cascade, finest first, the last the
+    whole fitted map (``None``: one map, omitted);
     ``probe_height``, ``probe_spacing`` in m;
     ``effects`` the scene's capture effects and ``passes_run`` the capture passes run;
     ``scene`` (``None`` -> JSON ``{}``: unknown)."""
@@ -233,8 +254,10 @@ class Manifest:
     resolution: int
     levels: tuple[Level, ...]
     lobes: LobeTable | None = field(default=None, metadata={"json": "empty_object_none"})
+    ladder: LadderTable | None = field(default=None, metadata=_OMIT)  # rung ladder (ladder_table.py)
     prefilter_quality: str | None = field(default=None, metadata=_OMIT)
     shadow_texel_m: float | None = field(default=None, metadata=_OMIT)
+    shadow_cascade_texels_m: tuple[float, ...] | None = field(default=None, metadata=_OMIT)
     probe_height: float
     probe_spacing: float
     streets: tuple[Street, ...]
@@ -319,14 +342,9 @@ def _positive(x: float, where: str, unit: str) -> None:
 
 
 def check_manifest(m: Manifest, where: str = "manifest") -> int:
-    """Check the rules beyond types; return the number of probe layers.
-
-    Fixed fields equal their constants; every number within float32 (reals) or int32 (integers)
-    range (:func:`envcap.probeset.float32_range.check_number_ranges`); ``levels[k]`` is
-    ``{level: k, size: max(1, N >> k)}`` with a power positive as float32 or null, 1..log2(N)+1
-    of them; ``probe_height`` and ``probe_spacing`` positive as float32; sky format RGBA32F; streets with unique names, axis x|z, start < end,
-    facade_min < facade_max (street and probe planes); probe layers exactly 0..L-1.
-    """
+    """Check the rules beyond types (the list: ``docs/formats.md``, "Manifest, version 1";
+    numbers in float32/int32 range by :func:`envcap.probeset.float32_range.check_number_ranges`);
+    return the number of probe layers."""
     for f in fields(Manifest):
         if f.name in _FIXED and getattr(m, f.name) != f.default:
             raise ManifestError(f"{where}: {f.name} is {getattr(m, f.name)!r}, expected {f.default!r}")
@@ -343,6 +361,8 @@ def check_manifest(m: Manifest, where: str = "manifest") -> int:
             _positive(lev.lobe_power, f"{where}: levels[{k}].lobe_power", "a power, or null")
     if m.lobes is not None and not len(m.lobes.sizes) == len(m.lobes.powers) == len(m.levels):
         raise ManifestError(f"{where}: lobes must list a size and a power per level ({len(m.levels)})")
+    if m.ladder is not None:
+        check_ladder_table(m.ladder, tuple(lv.size for lv in m.levels), where)
     _check_files(m.files, f"{where}: files")
     _positive(m.probe_height, f"{where}: probe_height", "meters")
     _positive(m.probe_spacing, f"{where}: probe_spacing", "meters")
@@ -359,6 +379,8 @@ def check_manifest(m: Manifest, where: str = "manifest") -> int:
             raise ManifestError(f"{sw}.axis: must be 'x' or 'z', got {st.axis!r}")
         if not st.end > st.start:
             raise ManifestError(f"{sw}: start {st.start} must be below end {st.end}")
+        if st.framed and st.axis != "x":
+            raise ManifestError(f"{sw}.axis: a street with yaw_deg/origin_xz runs along its frame's x, got {st.axis!r}")
         _check_planes(st.planes, f"{sw}.planes")
         for j, pr in enumerate(st.probes):
             pw = f"{sw}.probes[{j}]"
@@ -385,12 +407,11 @@ def manifest_text(m: Manifest) -> str:
 def write_manifest(path: str | os.PathLike[str], m: Manifest) -> Path:
     """Write ``m`` as ``path`` (not atomically: the probe-set writer writes it inside its
     atomic directory); return the path."""
-    p = Path(path)
-    p.write_text(manifest_text(m))
+    (p := Path(path)).write_text(manifest_text(m))
     return p
 
 
 def dataclass_types() -> dict[str, type]:
     """The manifest's dataclasses by name (the ``$defs`` names of ``docs/manifest.schema.json``)."""
-    return {c.__name__: c for c in (Manifest, ColorInfo, Level, LobeTable, Street, Probe, Planes, PerPlane,
+    return {c.__name__: c for c in (Manifest, ColorInfo, Level, LobeTable, LadderTable, Street, Probe, Planes, PerPlane,
                                     FittedPlanes, SkyInfo, SunInfo, Files, Timings, SceneInfo)}

@@ -21,12 +21,18 @@ class ProbeSet:
     ``distance``: ``(L, 6, N, N)`` float32 radial distance in meters from the probe center, 0
     where alpha = 0 (level 0 only), or ``None``.  ``sky_levels[k]``: sky mip level ``k``,
     float32 ``(6, M_k, M_k, 4)`` with alpha = 1.
+    ``rungs`` / ``sky_rungs``: a set baked with a rung ladder (``manifest.ladder``, else ``None``):
+    ``rungs[j]`` ``(L R, 6, N_j, N_j, 4)``, layer ``l R + r`` = rung ``j R + r`` of probe ``l``;
+    ``sky_rungs[j]`` ``(R, 6, N_j, N_j, 4)``.  ``levels`` and ``sky_levels`` are then their layers
+    ``r = 0`` (views: the capture at level 0, one lobe per level).
     """
 
     manifest: Manifest
     levels: list[NDArray]
     distance: NDArray | None
     sky_levels: list[NDArray]
+    rungs: list[NDArray] | None = None
+    sky_rungs: list[NDArray] | None = None
 
     @property
     def layer_count(self) -> int:
@@ -126,6 +132,8 @@ def check_probe_set(ps: ProbeSet) -> None:
             f"probe levels ({len(ps.levels)} levels of {n}) disagree with the manifest "
             f"({len(m.levels)} levels of {m.resolution})"
         )
+    if m.ladder is not None or ps.rungs is not None:
+        check_rungs(ps, L)
     if ps.distance is not None:
         d = np.asarray(ps.distance)
         if d.shape != (L, 6, n, n):
@@ -134,3 +142,16 @@ def check_probe_set(ps: ProbeSet) -> None:
             raise ValueError("distance must be finite and >= 0 (meters)")
         if np.any((np.asarray(ps.levels[0])[..., 3] == 0) & (d != 0)):
             raise ValueError("distance must be 0 where alpha is 0 (sky)")
+
+
+def check_rungs(ps: ProbeSet, probes: int) -> None:
+    """Check the rung textures of ``ps`` against ``manifest.ladder`` (``ValueError``)."""
+    t = ps.manifest.ladder
+    if t is None or ps.rungs is None or ps.sky_rungs is None:
+        raise ValueError("a rung-ladder probe set needs manifest.ladder, rungs and sky_rungs together")
+    r = t.per_level
+    for name, lv, layers in (("probe rungs", ps.rungs, probes * r), ("sky rungs", ps.sky_rungs, r)):
+        want = [(layers, 6, s, s, 4) for s in t.sizes]
+        if [np.shape(a) for a in lv] != want:
+            raise ValueError(f"{name}: levels must have shapes {want}, got {[np.shape(a) for a in lv]}")
+        check_texels(list(lv), True, name)

@@ -119,18 +119,21 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
     if files.probes is None or files.sky is None:
         raise ValueError(f"{mpath}: files.{'probes' if files.probes is None else 'sky'} missing")
     levels, info = read_ktx2(root / files.probes)
+    per = 1 if manifest.ladder is None else manifest.ladder.per_level   # a rung ladder: per layers per probe
     if info["fmt"] != "rgba16f" or not info["layered"]:
         raise ValueError(f"{files.probes}: expected an RGBA16F cube-map array, got {info['fmt']} layered={info['layered']}")
-    if info["layers"] != layers or info["size"] != n or info["level_count"] != len(manifest.levels):
+    if info["layers"] != layers * per or info["size"] != n or info["level_count"] != len(manifest.levels):
         raise ValueError(
             f"{files.probes}: {info['layers']} layers x {info['level_count']} levels of {info['size']}, "
-            f"manifest says {layers} probes x {len(manifest.levels)} levels of {n}"
+            f"manifest says {layers} probes{f' x {per} rungs' if per > 1 else ''} x {len(manifest.levels)} levels of {n}"
         )
     check_texels(levels, True, str(root / files.probes))
     sky, sinfo = read_ktx2(root / files.sky)
-    if sinfo["fmt"] != "rgba32f" or sinfo["layered"]:
-        raise ValueError(f"{files.sky}: expected a plain RGBA32F cube map, got {sinfo['fmt']} layered={sinfo['layered']}")
-    check_texels(sky, False, str(root / files.sky))
+    rungs = manifest.ladder is not None
+    if sinfo["fmt"] != "rgba32f" or sinfo["layered"] != rungs or (rungs and sinfo["layers"] != per):
+        raise ValueError(f"{files.sky}: expected {f'a {per}-layer RGBA32F cube-map array (manifest.ladder)' if rungs else 'a plain RGBA32F cube map'}, "
+                         f"got {sinfo['fmt']} layered={sinfo['layered']} with {sinfo['layers']} layers")
+    check_texels(sky, rungs, str(root / files.sky))
     dist = None
     if distance and files.exr:
         if len(files.exr) != layers:
@@ -142,7 +145,10 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
                 raise ValueError(f"{name}: missing or mis-sized Z (distance) channel")
             ds.append(d)
         dist = np.stack(ds).astype(np.float32)
-    return ProbeSet(manifest=manifest, levels=levels, distance=dist, sky_levels=sky)
+    if not rungs:
+        return ProbeSet(manifest=manifest, levels=levels, distance=dist, sky_levels=sky)
+    return ProbeSet(manifest=manifest, levels=[lv[0::per] for lv in levels], distance=dist,
+                    sky_levels=[lv[0] for lv in sky], rungs=levels, sky_rungs=sky)
 
 
 def read_city_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> ProbeSet:
