@@ -9,6 +9,7 @@ from pathlib import Path
 
 from envcap.cli.capture_city import add_city_arguments, city_requested, run_city
 from envcap.cli.output_options import add_force_argument, scene_input_files
+from envcap.core.rungs import LADDER_MODES
 from envcap.formats.registry import default_writer_names
 from envcap.formats.scene_gltf_writer import registered_scene_writer
 from envcap.outputs import claim_output_dir
@@ -45,6 +46,9 @@ def add_bake_arguments(p: argparse.ArgumentParser, resolution: int, *, files: bo
                    help="also write probes_atlas.ktx2: the probes as face atlases for WebGL2 / three.js (docs/engines.md)")
     p.add_argument("--latlong", action="store_true",
                    help="also write latlong/*.exr: lat-long maps of the sky and of each probe over it (docs/engines.md)")
+    p.add_argument("--sky-visibility", action="store_true",
+                   help="also write sky_visibility.ktx2: visibility moments that keep the composite right when the sky "
+                        "changes after the bake (docs/lobes.md)")
     p.add_argument("--scene-gltf", action="store_true",
                    help="also write scene.glb: the scene mesh near the streets as binary glTF, drawn by 'envcap view' (docs/viewer.md)")
     add_force_argument(p)
@@ -55,6 +59,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("scene", help="bundled scene name (see 'envcap scenes') or path to a scene .toml")
     p.add_argument("--out", required=True, type=Path, help="output directory (written atomically)")
     add_bake_arguments(p, 256)
+    p.add_argument("--ladder", choices=list(LADDER_MODES), default="paper",
+                   help="lobe ladder: paper (default: one chain), half_octave (4 rungs per level, ~4x the texels: "
+                        "holds cos^w between levels and at wide lobes) or octave (2 rungs, ~2x); docs/lobes.md")
     add_city_arguments(p)
     p.set_defaults(func=run)
 
@@ -72,13 +79,14 @@ def bake_to_dir(args: argparse.Namespace, scene_name: str, out: str | os.PathLik
     t0 = time.perf_counter()
     scene = load_scene(scene_name)
     writers = ([n for n in default_writer_names() if n not in ("exr", "previews")]   # those two: --exr, --previews
-               + [w for w in ("webgl2", "latlong") if getattr(args, w, False)])
+               + [w for w in ("webgl2", "latlong", "sky_visibility") if getattr(args, w, False)])
     quiet = bool(getattr(args, "quiet", False))
     report = BakeProgress("off" if quiet else "auto")
     with registered_scene_writer(scene if getattr(args, "scene_gltf", False) else None) as scene_writer:
         path, ps = bake_to_directory(scene, out, exr=args.exr, previews=args.previews, writers=writers + scene_writer,
                                      report=report, resolution=args.resolution, spacing=args.spacing, height=args.height,
-                                     quality=args.quality, sun_in_sky=args.sun_in_sky, verbose=not quiet)
+                                     quality=args.quality, sun_in_sky=args.sun_in_sky, verbose=not quiet,
+                                     **({} if getattr(args, "ladder", "paper") == "paper" else {"ladder_mode": args.ladder}))
     n = ps.layer_count
     print(f"wrote {n} probes ({args.resolution}^2 x 6, {len(ps.levels)} levels) of '{scene.name}' to {path}"
           f" in {time.perf_counter() - t0:.1f} s")
@@ -90,6 +98,10 @@ def run(args: argparse.Namespace) -> int:
     if city_requested(args):
         if getattr(args, "scene_gltf", False):
             raise ValueError("--scene-gltf is for one scene's probe set, not a city bake")
+        if getattr(args, "sky_visibility", False):
+            raise ValueError("--sky-visibility is for one scene's probe set, not a city bake")
+        if getattr(args, "ladder", "paper") != "paper":
+            raise ValueError("--ladder is for one scene's probe set, not a city bake (city shards hold the paper's chain)")
         return run_city(args)
     with claim_output_dir(args.out, kind="probe-set", inputs=scene_input_files(args.scene), force=args.force) as out:
         bake_to_dir(args, args.scene, out)

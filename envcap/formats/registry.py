@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from envcap.formats import exr_writer, ktx2_writer, latlong_writer, preview_writer, webgl2_writer
+from envcap.formats import exr_writer, ktx2_writer, latlong_writer, preview_writer, sky_visibility_writer, webgl2_writer
 from envcap.formats.writer import ProbeSetWriter
 
 WRITERS: dict[str, ProbeSetWriter] = {}
@@ -51,3 +51,4 @@ register_writer(exr_writer.WRITER)
 register_writer(preview_writer.WRITER)
 register_writer(webgl2_writer.WRITER)
 register_writer(latlong_writer.WRITER)
+register_writer(sky_visibility_writer.WRITER)
