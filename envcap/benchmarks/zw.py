@@ -23,7 +23,9 @@ Also: Eq. 3 (:func:`envcap.evaluate.shading.shade`, three materials, the evaluat
 by each mode's lookups of ``street`` against the exact lobe integrals (relative RMS error over the
 frames); and ``composite``: ``filter(alpha sky) - filter(alpha) filter(sky)`` per ``w`` (the
 runtime composites after filtering; sky without its sun), relative to the composited truth and to
-the sky term ``filter((1 - alpha) sky)``.  Derivations and the tables: ``docs/lobes.md``.
+the sky term ``filter((1 - alpha) sky)``; ``sky_change``: the same composite lit by the baked sky
+and by another one, with the sky-visibility corrections (:func:`sky_change_errors`).
+Derivations and the tables: ``docs/lobes.md``.
 """
 
 from __future__ import annotations
@@ -221,6 +223,74 @@ def composite_errors(capture: NDArray[np.float64], sky: NDArray[np.float64], sky
     return rows
 
 
+def sky_change_errors(capture: NDArray[np.float64], skies: dict[str, NDArray[np.float64]], ws: NDArray[np.float64],
+                      dirs: NDArray[np.float64], ctx: Any, orders: tuple[int, ...] = (1, 2, 3, 4)) -> dict[str, Any]:
+    """The composite after filtering lit by each sky of ``skies`` (the first: the baked one) with the
+    sky-visibility correction (:mod:`envcap.runtime.sky_visibility`, ``docs/lobes.md``), per ``w``:
+    relative RMS of luminance against ``filter(street + (1 - alpha) sky)``.  Rows ``[SKY][METHOD]``:
+    ``plain`` / ``sky_alpha``: today's composite (rungs' alpha plain / sky-weighted for the baked
+    sky); with ``V`` of SH order ``L`` (sky-weighted alpha where none is stored): ``sh2`` (pure SH),
+    ``shL_residual`` (SH + residual, no base), ``deltaL`` (the baked sky as base, SH of the
+    difference), ``local1`` (``V`` of l <= 1, the new sky's local gradient, no SH, no base),
+    ``delta_local1`` (the same on the difference from the baked sky), ``delta2_local`` (SH l <= 2
+    of the difference + its gradient); ``_f16``: ``V`` rounded to float16, as RGBA16F stores it."""
+    from envcap.prefilter.sky_visibility import SkyVisibility, prefilter_sky_visibility, sh_count
+    from envcap.runtime.sky_visibility import sh_projection_error, sky_delta, sky_sh_coefficients, sky_visible
+
+    a = capture[..., 3:4]
+    lad = rung_ladder(capture.shape[1], "half_octave")
+    base = next(iter(skies.values()))
+    st = {k: RungChains(prefilter_rungs(capture, lad, ctx=ctx, sky=s), lad) for k, s in (("plain", None), ("sky_alpha", base))}
+    v4 = prefilter_sky_visibility(a[..., 0], lad, max(orders), ctx=ctx)
+    vis = {o: SkyVisibility([lv[..., :sh_count(o)] for lv in v4.levels], lad, o, v4.first_level) for o in orders}
+    vis16 = {o: SkyVisibility([lv.astype(np.float16).astype(np.float32) for lv in v.levels], lad, o, v.first_level)
+             for o, v in vis.items()}
+    sky_r = {k: RungChains(prefilter_rungs(s, lad, ctx=ctx), lad) for k, s in skies.items()}
+    kb = {o: sky_sh_coefficients(base, o) for o in orders}
+    out: dict[str, Any] = {"rows": {}, "sh_projection_error": {}, "delta_projection_error": {}, "scale": {},
+                           "first_stored_power": lad.powers[v4.first_rung],
+                           "bytes_per_probe": {o: v.bytes_per_probe() for o, v in vis.items()}}
+    for name, sky in skies.items():
+        ks = {o: sky_sh_coefficients(sky, o) for o in orders}
+        dl = {o: sky_delta(ks[o], kb[o], o) for o in orders}
+        sc = dl[orders[0]][0]
+        out["scale"][name] = sc.tolist()
+        out["sh_projection_error"][name] = {o: sh_projection_error(sky, k, o) for o, k in ks.items()}
+        out["delta_projection_error"][name] = {o: sh_projection_error(sky[..., :3] - dl[o][0] * base[..., :3], dl[o][1], o)
+                                               for o in orders}
+        rows: dict[str, list[float]] = {}
+        for w in ws:
+            truth = luminance(convolve_exact_dirs(capture[..., :3] + (1.0 - a) * sky[..., :3], w, dirs))
+            ww = np.full(len(dirs), w)
+            k_w = sky_r[name].fetch(dirs, 0.0, ww)[:, :3]
+            b_w = sky_r[next(iter(skies))].fetch(dirs, 0.0, ww)[:, :3]
+            look = {k: c.fetch(dirs, 0.0, ww) for k, c in st.items()}
+            pred = {k: s[:, :3] + (1.0 - np.clip(s[:, 3:], 0, 1)) * k_w for k, s in look.items()}
+            s_a, a_w = look["sky_alpha"], np.clip(look["sky_alpha"][:, 3], 0, 1)
+            sc = dl[2][0]
+
+            def new_sky(dd: NDArray, ww: NDArray = ww, name: str = name) -> NDArray:
+                return sky_r[name].fetch(dd, 0.0, ww)[:, :3]
+
+            def diff_sky(dd: NDArray, ww: NDArray = ww, sc: NDArray = sc, name: str = name) -> NDArray:
+                return new_sky(dd, ww, name) - sc * sky_r[next(iter(skies))].fetch(dd, 0.0, ww)[:, :3]
+
+            runs = [(f"sh{o}", vis[o], ks[o], None, "sh", None) for o in orders if o == 2]
+            runs += [(f"sh{o}_residual", vis[o], ks[o], None, "sh_residual", None) for o in orders]
+            runs += [(f"delta{o}", vis[o], dl[o][1], dl[o][0] * b_w, "sh_residual", None) for o in orders]
+            z1 = np.zeros((4, 3))
+            runs += [("local1", vis[1], z1, None, "sh_residual", new_sky), ("local1_f16", vis16[1], z1, None, "sh_residual", new_sky),
+                     ("delta_local1", vis[1], z1, sc * b_w, "sh_residual", diff_sky),
+                     ("delta_local1_f16", vis16[1], z1, sc * b_w, "sh_residual", diff_sky),
+                     ("delta2_local", vis[2], dl[2][1], sc * b_w, "sh_residual", diff_sky)]
+            for key, vv, kk, bw, corr, grad in runs:
+                pred[key] = s_a[:, :3] + k_w - sky_visible(vv, dirs, 0, ww, kk, a_w, k_w, corr, bw, grad)  # type: ignore[arg-type]
+            for key, p in pred.items():
+                rows.setdefault(key, []).append(_rel(luminance(p), truth))
+        out["rows"][name] = rows
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
     import matplotlib
     matplotlib.use("Agg")
@@ -257,6 +327,7 @@ def run(args: argparse.Namespace) -> int:
     print("shading", result["shading"], flush=True)
     result["composite"] = composite_errors(capture, sky, other_sky(n), ws, dirs, ctx)
     print("composite", {k: f"max {max(v):.3g} median {np.median(v):.3g}" for k, v in result["composite"].items()}, flush=True)
+    result["sky_change"] = sky_change_errors(capture, {"sky": sky, "sky2": other_sky(n)}, ws, dirs, ctx)
     ctx.release()
     with atomic_output_dir(args.out) as tmp:
         (tmp / "zw.json").write_text(json.dumps(result, indent=2))

@@ -1,0 +1,112 @@
+"""z(w) lookup error of *baked* probe sets, read back from disk: the paper's chain against the rung
+ladders that ``envcap capture --ladder MODE`` stores (``docs/lobes.md``, "Ladder modes").
+
+``envcap bench zw`` measures ladders rebuilt in memory from one capture; this benchmark bakes the
+``canyon`` (one probe, at (0, 2, 0): the probe of ``bench zw``) with each mode,
+writes the set (``probes.ktx2`` RGBA16F, ``sky.ktx2`` RGBA32F, ``manifest.json``), reads it back
+with :func:`envcap.probeset.store.read_probe_set` and looks it up as the runtime's numpy twin does:
+:class:`envcap.runtime.chains.ProbeChains` (a rung ladder: two rungs,
+:func:`envcap.runtime.rungs.rung_fetch`) composited over :func:`envcap.runtime.sampling.sample_sky`
+(the baked sky; with the sky-weighted alpha the bake stores).  Truth: the exact normalized
+``cos^w`` convolution (float64, :func:`envcap.prefilter.exact.convolve_exact_dirs`) of the float
+capture composited over the sky (``envcap.benchmarks.zw.zw_inputs``): ``street``, ``sky`` (no
+sun) and ``sky_sun`` (a second bake with ``sun_in_sky``).  Relative RMSE of luminance at random
+uniform directions, ``w`` log-spaced in [1, 1e4]; median, p95 and the floor (largest error at
+``w <= 16``) as in ``bench zw``.  Also the bytes per probe of each mode and of ``probes.ktx2``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from envcap.benchmarks.zw import summary, zw_inputs
+from envcap.core.color import luminance
+from envcap.core.rungs import ladder_bytes_per_probe
+from envcap.gpu.context import create_context
+from envcap.outputs import atomic_output_dir
+from envcap.prefilter import convolve_exact_dirs
+from envcap.probeset.bake import bake_probe_set
+from envcap.probeset.store import read_probe_set, write_probe_set
+from envcap.runtime.chains import ProbeChains, SkyChain
+from envcap.runtime.sampling import composite, sample_sky
+from envcap.scene import load_scene
+
+SPACING = 400.0
+"""Probe spacing of the canyon bakes (m): one probe, at (0, 2, 0)."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", required=True, help="output directory (zw_baked.json)")
+    p.add_argument("--size", type=int, default=64, help="face size N of the bakes (default 64)")
+    p.add_argument("--dirs", type=int, default=1024, help="random directions (default 1024)")
+    p.add_argument("--powers", type=int, default=33, help="w values log-spaced in [1, 1e4] (default 33)")
+    p.add_argument("--modes", default="paper,half_octave", help="ladder modes, comma-separated (default paper,half_octave)")
+    p.add_argument("--quality", default="composed", help="prefilter quality of the bakes (default composed, as envcap capture)")
+
+
+def baked_lookups(ps: Any) -> tuple[Any, Any]:
+    """``(street(d, w), sky(d, w))`` of the probe at (0, 2, 0) of a read-back set ``ps``: the
+    runtime twin's street RGBA over the sky, and the sky alone."""
+    chains = ProbeChains.from_probe_set(ps)
+    sky = SkyChain(ps.sky_levels) if chains.ladder is None else SkyChain(ps.sky_rungs, chains.ladder)
+    layer = [p.layer for st in ps.manifest.streets for p in st.probes if abs(p.position[0]) < 1e-6][0]
+
+    def street(d: NDArray, w: NDArray) -> NDArray:
+        return composite(chains.fetch(d, np.full(len(d), layer), w), sample_sky(sky, d, w, chains.xk))
+
+    def sky_only(d: NDArray, w: NDArray) -> NDArray:
+        return sample_sky(sky, d, w, chains.xk)[..., :3]
+
+    return street, sky_only
+
+
+def run(args: argparse.Namespace) -> int:
+    n = int(args.size)
+    modes = [m.strip() for m in str(args.modes).split(",") if m.strip()]
+    ctx = create_context()
+    rng = np.random.default_rng(0)
+    dirs = rng.normal(size=(int(args.dirs), 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    ws = np.logspace(0, 4, int(args.powers))
+    inputs, _, _ = zw_inputs(n, ctx)
+    truth = {name: [luminance(convolve_exact_dirs(env, w, dirs)) for w in ws] for name, env in inputs.items()}
+    scene = load_scene("canyon")
+    result: dict[str, Any] = {"size": n, "directions": int(args.dirs), "w": ws.tolist(), "quality": args.quality,
+                              "bytes_per_probe": {m: {str(s): ladder_bytes_per_probe(m, s) for s in (64, 128, 256)}
+                                                  for m in ("paper", "half_octave", "octave")},
+                              "file_bytes_per_probe": {}, "bake_s": {}, "inputs": {}, "summary": {}}
+    for mode in modes:
+        for sun in (False, True):
+            t0 = time.perf_counter()
+            ps = bake_probe_set(scene, resolution=n, spacing=SPACING, quality=args.quality, sun_in_sky=sun,
+                                ladder_mode=mode, ctx=ctx, progress=False)
+            with tempfile.TemporaryDirectory() as tmp:
+                path = write_probe_set(Path(tmp) / "set", ps, exr=False, previews=False)
+                if not sun:
+                    result["file_bytes_per_probe"][mode] = (path / "probes.ktx2").stat().st_size / ps.layer_count
+                    result["bake_s"][mode] = round(time.perf_counter() - t0, 1)
+                back = read_probe_set(path)
+            street, sky_only = baked_lookups(back)
+            names = {"street": street, "sky": sky_only} if not sun else {"sky_sun": sky_only}
+            for name, look in names.items():
+                errs = []
+                for w, ye in zip(ws, truth[name]):
+                    got = luminance(look(dirs, np.full(len(dirs), w))[..., :3])
+                    errs.append(float(np.sqrt(np.mean((got - ye) ** 2) / np.mean(ye ** 2))))
+                result["inputs"].setdefault(name, {})[mode] = errs
+                result["summary"].setdefault(name, {})[mode] = summary(ws, errs)
+            print(mode, "sun" if sun else "no sun", f"{time.perf_counter() - t0:.1f} s",
+                  {k: {m: {a: round(b, 4) for a, b in s.items()} for m, s in v.items() if m == mode}
+                   for k, v in result["summary"].items()}, flush=True)
+    ctx.release()
+    with atomic_output_dir(args.out) as tmp:
+        (Path(tmp) / "zw_baked.json").write_text(json.dumps(result, indent=2))
+    return 0
