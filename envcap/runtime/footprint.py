@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.runtime.glsl_math import dot3
 from envcap.runtime.limits import FAR, MAX_RATIO, MIN_DIST
-from envcap.runtime.parallax import check_along, clamp_to_street, exit_distance, parallax
+from envcap.runtime.parallax import check_along, clamp_to_street, exit_distance, parallax, plane_exits, tilted
 
 MIN_COS = 1.0e-4
 """Cosines of the hit angles below this are taken as this (grazing hits; the shift then clamps).
@@ -61,21 +61,25 @@ class Footprint:
 
 
 def hit_normal(x: ArrayLike, d: ArrayLike, planes: ArrayLike, along: int, dtype: Any = np.float64) -> NDArray:
-    """Unit normal ``(..., 3)`` (an axis vector, sign irrelevant) of the plane the ray from ``x``
-    (inside the street) along ``d`` exits through: the ground (+y) when its exit distance is the
-    smaller one (``t_g < t_c``), else the facades (the cross axis).  No hit: the facades' normal."""
+    """Unit normal ``(..., 3)`` (sign irrelevant) of the plane the ray from ``x`` (inside the
+    street) along ``d`` exits through: the ground when its exit distance is the smaller one
+    (``t_g < t_c``; +y, or ``(-slope, 1, 0) / sqrt(1 + slope^2)`` in (along, y, cross) for a tilted
+    ground), else the facades (the cross axis).  No hit: the facades' normal."""
     c = 2 - check_along(along)
     x, d, planes = (np.asarray(a, dtype=dtype) for a in (x, d, planes))
-    x, d, planes = np.broadcast_arrays(x, d, planes)
-    far = dtype(FAR)
-    dc = d[..., c]
-    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        tc = np.where(dc > 0, (planes[..., 1] - x[..., c]) / np.where(dc > 0, dc, 1),
-                      np.where(dc < 0, (planes[..., 0] - x[..., c]) / np.where(dc < 0, dc, 1), far))
-        tg = np.where(d[..., 1] < 0, (planes[..., 2] - x[..., 1]) / np.where(d[..., 1] < 0, d[..., 1], 1), far)
+    shape = np.broadcast_shapes(x.shape, d.shape, planes.shape[:-1] + (3,))
+    x, d = np.broadcast_to(x, shape), np.broadcast_to(d, shape)
+    planes = np.broadcast_to(planes, shape[:-1] + planes.shape[-1:])
+    tc, tg = plane_exits(x, d, planes, along, dtype)
     ground = tg < tc
     n = np.zeros(x.shape, dtype=dtype)
-    n[..., 1] = np.where(ground, 1, 0)
+    if tilted(planes):
+        k = planes[..., 3]
+        gl = np.sqrt(dtype(1) + k * k)
+        n[..., 1] = np.where(ground, dtype(1) / gl, 0)
+        n[..., along] = np.where(ground, -k / gl, 0)
+    else:
+        n[..., 1] = np.where(ground, 1, 0)
     n[..., c] = np.where(ground, 0, 1)
     return n
 
@@ -85,8 +89,9 @@ def footprint(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, along
     """The footprint (:class:`Footprint`) of lobes around unit ``d`` from shading points ``x`` on
     the three planes of the probe at ``p`` (all broadcast; vectors ``(..., 3)``; meters)."""
     x, d, p, planes = (np.asarray(a, dtype=dtype) for a in (x, d, p, planes))
-    shape = np.broadcast_shapes(x.shape, d.shape, p.shape, planes.shape)
-    x, d, p, planes = (np.broadcast_to(a, shape) for a in (x, d, p, planes))
+    shape = np.broadcast_shapes(x.shape, d.shape, p.shape, planes.shape[:-1] + (3,))
+    x, d, p = (np.broadcast_to(a, shape) for a in (x, d, p))
+    planes = np.broadcast_to(planes, shape[:-1] + planes.shape[-1:])
     one = dtype(1)
     xc = clamp_to_street(x, planes, along, dtype)
     t = exit_distance(xc, d, planes, along, dtype)
@@ -102,8 +107,11 @@ def footprint(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, along
         dn = dot3(d, n)
         ev = d - dn[..., None] * n
         el = np.sqrt(dot3(ev, ev))
-        # d along the normal: any in-plane axis (the footprint is round on the plane)
+        # d along the normal: any in-plane axis (the footprint is round on the plane); the rolled
+        # normal is in the plane of an axis normal, projected into a tilted ground's
         alt = np.roll(n, 1, axis=-1)
+        alt = alt - dot3(alt, n)[..., None] * n
+        alt = alt / np.sqrt(dot3(alt, alt))[..., None]
         ed = np.where((el > dtype(1e-6))[..., None], ev / np.where(el > dtype(1e-6), el, one)[..., None], alt)
         ep = np.cross(n, ed)
         ca = np.maximum(np.abs(dn), dtype(MIN_COS))
@@ -214,8 +222,9 @@ def sigma_footprint(x: ArrayLike, d: ArrayLike, w: ArrayLike, p: ArrayLike, plan
     """
     x, d, p, planes = (np.asarray(a, dtype=dtype) for a in (x, d, p, planes))
     w = np.asarray(w, dtype=dtype)
-    shape = np.broadcast_shapes(x.shape, d.shape, p.shape, planes.shape, w.shape + (3,))
-    x, d, p, planes = (np.broadcast_to(a, shape) for a in (x, d, p, planes))
+    shape = np.broadcast_shapes(x.shape, d.shape, p.shape, planes.shape[:-1] + (3,), w.shape + (3,))
+    x, d, p = (np.broadcast_to(a, shape) for a in (x, d, p))
+    planes = np.broadcast_to(planes, shape[:-1] + planes.shape[-1:])
     w = np.broadcast_to(np.where(w > 0, w, dtype(0)), shape[:-1])   # w < 0 and NaN count as 0
     one = dtype(1)
     xc = clamp_to_street(x, planes, along, dtype)

@@ -3,10 +3,15 @@ selection along a street and three-plane parallax.
 
 Every function is vectorized (inputs broadcast; vectors are ``(..., 3)``), float64 by default;
 ``dtype=np.float32`` evaluates in float32 in the GLSL operation order, to compare with the GPU.
-Conventions: world right-handed, meters, +Y up; a street runs along world axis ``along``
-(0 = x, 2 = z), its cross axis is ``2 - along``; ``planes = (facade_min, facade_max, ground)``
-in absolute world coordinates (m).  Math and fallbacks: ``docs/runtime.md``.  Nothing here
-returns NaN or Inf for finite inputs; the fallbacks are the GLSL ones.
+Conventions: right-handed, meters, +Y up, in the street's frame (the world for a street along
+x or z; frame coordinates for a street at any angle, :mod:`envcap.core.street_frame`); a street
+runs along axis ``along`` (0 = x, 2 = z), its cross axis is ``2 - along``; ``planes =
+(facade_min, facade_max, ground)`` in absolute coordinates (m), or ``(facade_min, facade_max,
+ground0, slope)`` for a tilted ground (GLSL ``planes.w``): the ground's height at a point is
+``ground0 + slope * s``, ``s`` its along-street coordinate (``ground0``: the height at ``s = 0``),
+normal ``(-slope, 1, 0) / sqrt(1 + slope^2)`` in (along, y, cross).  ``slope = 0`` gives exactly
+the three-component numbers.  Math and fallbacks: ``docs/runtime.md``.  Nothing here returns
+NaN or Inf for finite inputs; the fallbacks are the GLSL ones.
 """
 
 from __future__ import annotations
@@ -64,23 +69,48 @@ def probe_pair(s: ArrayLike, along_coords: ArrayLike, dtype: Any = np.float64) -
     return i0, i1, t
 
 
+def tilted(planes: ArrayLike) -> bool:
+    """Whether ``planes`` ``(..., 3 | 4)`` carry a ground slope (a fourth component)."""
+    n = np.shape(planes)[-1]
+    if n not in (3, 4):
+        raise ValueError(f"planes must have 3 or 4 components (facade_min, facade_max, ground[, slope]), got {n}")
+    return n == 4
+
+
+def ground_height(x: NDArray, planes: NDArray, along: int, dtype: Any = np.float64) -> NDArray:
+    """Height (m) of the ground under points ``x`` (GLSL ``planes.z + planes.w * x[along]``)."""
+    if not tilted(planes):
+        return planes[..., 2]
+    return (planes[..., 2] + planes[..., 3] * x[..., along]).astype(dtype)
+
+
+def ground_rate(d: NDArray, planes: NDArray, along: int, dtype: Any = np.float64) -> NDArray:
+    """Rate (m per m) at which direction ``d`` rises above the ground: ``d_y - slope d_along``
+    (negative: towards the ground; 0: parallel to it)."""
+    if not tilted(planes):
+        return d[..., 1]
+    return (d[..., 1] - planes[..., 3] * d[..., along]).astype(dtype)
+
+
 def clamp_to_street(x: ArrayLike, planes: ArrayLike, along: int, dtype: Any = np.float64) -> NDArray:
-    """``x`` moved into the street volume (cross coordinate into the facades, height >= ground)."""
+    """``x`` moved into the street volume (cross coordinate into the facades, height >= the ground
+    under it; the along coordinate is kept)."""
     c = 2 - check_along(along)
-    x = np.asarray(x, dtype=dtype).copy()
+    x = np.asarray(x, dtype=dtype)
     pl = np.asarray(planes, dtype=dtype)
-    x, pl = np.broadcast_arrays(x, pl)
-    x = x.copy()
+    shape = np.broadcast_shapes(x.shape, pl.shape[:-1] + (3,))
+    x = np.broadcast_to(x, shape).copy()
+    pl = np.broadcast_to(pl, shape[:-1] + pl.shape[-1:])
     x[..., c] = np.minimum(np.maximum(x[..., c], pl[..., 0]), pl[..., 1])
-    x[..., 1] = np.maximum(x[..., 1], pl[..., 2])
+    x[..., 1] = np.maximum(x[..., 1], ground_height(x, pl, along, dtype))
     return x
 
 
-def exit_distance(x: ArrayLike, d: ArrayLike, planes: ArrayLike, along: int, dtype: Any = np.float64) -> NDArray:
-    """Distance (m) along unit ``d`` from ``x`` (inside the street) to the first plane, or FAR.
-
-    +0.0 and -0.0 direction components mean "parallel" (no division happens for them).
-    """
+def plane_exits(x: ArrayLike, d: ArrayLike, planes: ArrayLike, along: int,
+                dtype: Any = np.float64) -> tuple[NDArray, NDArray]:
+    """``(t_c, t_g)``: distances (m) along ``d`` from ``x`` to the facade it runs towards and to the
+    ground (FAR when parallel to it or moving away; may overflow to inf).  +0.0 and -0.0 rates
+    mean "parallel" (no division happens for them)."""
     c = 2 - check_along(along)
     x = np.asarray(x, dtype=dtype)
     d = np.asarray(d, dtype=dtype)
@@ -91,8 +121,16 @@ def exit_distance(x: ArrayLike, d: ArrayLike, planes: ArrayLike, along: int, dty
         tpos = (pl[..., 1] - x[..., c]) / np.where(dc > 0, dc, 1)
         tneg = (pl[..., 0] - x[..., c]) / np.where(dc < 0, dc, 1)
         tc = np.where(dc > 0, tpos, np.where(dc < 0, tneg, far))
-        tg = np.where(d[..., 1] < 0, (pl[..., 2] - x[..., 1]) / np.where(d[..., 1] < 0, d[..., 1], 1), far)
-    return np.minimum(np.minimum(tc, tg), far)
+        dg = ground_rate(d, pl, along, dtype)
+        tg = np.where(dg < 0, (ground_height(x, pl, along, dtype) - x[..., 1]) / np.where(dg < 0, dg, 1), far)
+    return tc, tg
+
+
+def exit_distance(x: ArrayLike, d: ArrayLike, planes: ArrayLike, along: int, dtype: Any = np.float64) -> NDArray:
+    """Distance (m) along unit ``d`` from ``x`` (inside the street) to the first plane, or FAR
+    (a ray parallel to a plane never hits it; a point on the ground going down: 0)."""
+    tc, tg = plane_exits(x, d, planes, along, dtype)
+    return np.minimum(np.minimum(tc, tg), dtype(FAR))
 
 
 def parallax(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, along: int,
@@ -100,14 +138,16 @@ def parallax(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, along:
     """Three-plane parallax: ``(r, ratio)`` for shading points ``x``, unit directions ``d``,
     probe positions ``p`` and planes (all broadcast; vectors ``(..., 3)``).
 
+    ``planes`` ``(..., 3)`` or ``(..., 4)`` with the ground slope (module docstring).
     ``r`` (``(..., 3)``) is the unit vector from the probe to the hit point; ``ratio`` = |hit - p|
     / |hit - x| clamped to [1/MAX_RATIO, MAX_RATIO].  Fallbacks: no hit -> ``(d, 1)``; hit within
     MIN_DIST of the probe -> ``(d, 1/MAX_RATIO)``; ``x`` on a plane -> |hit - x| taken as MIN_DIST.
     Points outside the street or below the ground are first clamped into it.
     """
     x, d, p, planes = (np.asarray(a, dtype=dtype) for a in (x, d, p, planes))
-    shape = np.broadcast_shapes(x.shape, d.shape, p.shape, planes.shape)
-    x, d, p, planes = (np.broadcast_to(a, shape) for a in (x, d, p, planes))
+    shape = np.broadcast_shapes(x.shape, d.shape, p.shape, planes.shape[:-1] + (3,))
+    x, d, p = (np.broadcast_to(a, shape) for a in (x, d, p))
+    planes = np.broadcast_to(planes, shape[:-1] + planes.shape[-1:])
     xc = clamp_to_street(x, planes, along, dtype)
     t = exit_distance(xc, d, planes, along, dtype)
     hit = t < dtype(FAR)
@@ -121,3 +161,12 @@ def parallax(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, along:
     r_out = np.where(ok[..., None], rn, d)
     ratio_out = np.where(ok, ratio, np.where(hit, dtype(1.0 / MAX_RATIO), dtype(1.0))).astype(dtype)
     return r_out.astype(dtype), ratio_out
+
+
+def frame_direction(d: ArrayLike, frame: ArrayLike, dtype: Any = np.float64) -> NDArray:
+    """World directions ``d`` ``(..., 3)`` in a street's frame, ``frame = (cos yaw, sin yaw)``
+    (:mod:`envcap.core.street_frame`), in GLSL ``envcap_frame_dir``'s operation order:
+    ``(c d_x + s d_z, d_y, c d_z - s d_x)``.  ``frame = (1, 0)`` returns ``d`` (up to the sign of zeros)."""
+    d = np.asarray(d, dtype=dtype)
+    c, s = (dtype(v) for v in np.asarray(frame, dtype=dtype).reshape(2))
+    return np.stack([c * d[..., 0] + s * d[..., 2], d[..., 1], c * d[..., 2] - s * d[..., 0]], axis=-1)

@@ -2,10 +2,14 @@
 #define ENVCAP_STREET_GLSL
 // envcap runtime, part 1: street geometry (probe selection, three-plane parallax, mip shift).
 // No #version: #include this from a shader that starts with "#version 430" (or later).
-// Conventions (envcap/core/cube.py): world right-handed, meters, +Y up.  A street runs along world
-// axis `along` (0 = x, 2 = z); its cross axis is `2 - along`.  A probe's three planes are
-// vec3 planes = (facade_min, facade_max, ground): absolute cross-axis coordinates of the two
-// facades and the ground height, in meters.  Derivations: docs/runtime.md.
+// Conventions (envcap/core/cube.py): right-handed, meters, +Y up, in the street's frame (the world
+// for a street along x or z; a street at any angle: world turned by its yaw, envcap_frame_dir).
+// A street runs along axis `along` (0 = x, 2 = z); its cross axis is `2 - along`.  A probe's
+// planes are vec4 planes = (facade_min, facade_max, ground0, slope): absolute cross-axis
+// coordinates of the two facades, and the ground, whose height at a point x is
+// ground0 + slope * x[along] (normal (-slope, 1, 0) / sqrt(1 + slope^2) in (along, y, cross)).
+// slope = 0 is a horizontal ground at height ground0; each function also takes vec3 planes
+// (facade_min, facade_max, ground), the same as slope 0.  Derivations: docs/runtime.md.
 // Every function is total: no input listed in docs/runtime.md "Fallbacks" yields NaN or Inf.
 
 #ifndef ENVCAP_MAX_PROBES
@@ -52,32 +56,54 @@ vec3 envcap_probe_pair(float s, float along[ENVCAP_MAX_PROBES], int count)
     return vec3(float(i), float(i + 1), t);
 }
 
+// A world direction d in the frame of a street at yaw a, frame = (cos a, sin a) (EnvcapStreet.frame;
+// numpy twin envcap.runtime.parallax.frame_direction).  frame = (1, 0): d itself.
+vec3 envcap_frame_dir(vec3 d, vec2 frame)
+{
+    return vec3(frame.x * d.x + frame.y * d.z, d.y, frame.x * d.z - frame.y * d.x);
+}
+
+// Height of the ground under x, and the rate at which direction d rises above it (< 0: towards it).
+float envcap_ground_height(vec3 x, vec4 planes, int along) { return planes.z + planes.w * x[along]; }
+float envcap_ground_rate(vec3 d, vec4 planes, int along) { return d.y - planes.w * d[along]; }
+
 // The point x moved into the street volume: cross coordinate clamped to the facades, height
-// clamped to >= ground.  The along-street coordinate is unbounded (the street is open at its
-// ends).  Points outside the street or below the ground are projected onto the nearest plane.
-vec3 envcap_clamp_to_street(vec3 x, vec3 planes, int along)
+// clamped to >= the ground under it.  The along-street coordinate is unbounded (the street is
+// open at its ends).  Points outside the street or below the ground are moved onto the plane.
+vec3 envcap_clamp_to_street(vec3 x, vec4 planes, int along)
 {
     int cross = 2 - along;
     x[cross] = min(max(x[cross], planes.x), planes.y);
-    x.y = max(x.y, planes.z);
+    x.y = max(x.y, envcap_ground_height(x, planes, along));
     return x;
 }
+vec3 envcap_clamp_to_street(vec3 x, vec3 planes, int along) { return envcap_clamp_to_street(x, vec4(planes, 0.0), along); }
 
-// Distance t >= 0 (m) along unit direction d from x (inside the street volume) to the first of
-// the three planes, or ENVCAP_FAR when d hits none of them within ENVCAP_FAR (d up, d along
-// the street, or d parallel to the plane it would hit).  Components of d equal to +0.0 or -0.0
-// never divide: the explicit sign tests make both mean "parallel".
-float envcap_exit_distance(vec3 x, vec3 d, vec3 planes, int along)
+// Distances along d from x to the facade d runs towards (tc) and to the ground (tg); ENVCAP_FAR
+// when d is parallel to it or moves away from it (a quotient may overflow to +inf).
+vec2 envcap_plane_exits(vec3 x, vec3 d, vec4 planes, int along)
 {
     int cross = 2 - along;
     float dc = d[cross];
     float tc = ENVCAP_FAR;
     if (dc > 0.0) tc = (planes.y - x[cross]) / dc;
     else if (dc < 0.0) tc = (planes.x - x[cross]) / dc;
+    float dg = envcap_ground_rate(d, planes, along);
     float tg = ENVCAP_FAR;
-    if (d.y < 0.0) tg = (planes.z - x.y) / d.y;
-    return min(min(tc, tg), ENVCAP_FAR);   // a quotient that overflows to +inf becomes FAR
+    if (dg < 0.0) tg = (envcap_ground_height(x, planes, along) - x.y) / dg;
+    return vec2(tc, tg);
 }
+
+// Distance t >= 0 (m) along unit direction d from x (inside the street volume) to the first of
+// the three planes, or ENVCAP_FAR when d hits none of them within ENVCAP_FAR (d up, d along
+// the street, or d parallel to the plane it would hit).  A rate of +0.0 or -0.0 (d's cross
+// component, or its rise above the ground) never divides: both mean "parallel".
+float envcap_exit_distance(vec3 x, vec3 d, vec4 planes, int along)
+{
+    vec2 t = envcap_plane_exits(x, d, planes, along);
+    return min(min(t.x, t.y), ENVCAP_FAR);   // a quotient that overflows to +inf becomes FAR
+}
+float envcap_exit_distance(vec3 x, vec3 d, vec3 planes, int along) { return envcap_exit_distance(x, d, vec4(planes, 0.0), along); }
 
 // Three-plane parallax for shading point x, unit direction d, probe at p with `planes`.
 // Returns vec4(r, ratio): r = unit vector from the probe to the hit point (the direction to
@@ -85,7 +111,7 @@ float envcap_exit_distance(vec3 x, vec3 d, vec3 planes, int along)
 // [1/ENVCAP_MAX_RATIO, ENVCAP_MAX_RATIO].  Fallbacks: no hit -> (d, 1); hit point within
 // ENVCAP_MIN_DIST of the probe -> (d, 1/ENVCAP_MAX_RATIO); x on a plane (d_shade = 0) ->
 // d_shade taken as ENVCAP_MIN_DIST (the ratio then clamps to ENVCAP_MAX_RATIO).
-vec4 envcap_parallax(vec3 x, vec3 d, vec3 p, vec3 planes, int along)
+vec4 envcap_parallax(vec3 x, vec3 d, vec3 p, vec4 planes, int along)
 {
     vec3 xc = envcap_clamp_to_street(x, planes, along);
     float t = envcap_exit_distance(xc, d, planes, along);
@@ -97,6 +123,7 @@ vec4 envcap_parallax(vec3 x, vec3 d, vec3 p, vec3 planes, int along)
     ratio = min(max(ratio, 1.0 / ENVCAP_MAX_RATIO), ENVCAP_MAX_RATIO);
     return vec4(r / dp, ratio);
 }
+vec4 envcap_parallax(vec3 x, vec3 d, vec3 p, vec3 planes, int along) { return envcap_parallax(x, d, p, vec4(planes, 0.0), along); }
 
 // Mip shift in lobe-power space: the lobe of power w seen from the shading point covers the
 // same patch of the hit plane as a lobe of power w * ratio^2 seen from the probe
@@ -117,16 +144,12 @@ const float ENVCAP_SPREAD = 1.3;
 // envcap_parallax, q = ratio^2 cos(alpha) / cos(beta) the power multiplier (w' = w q), alpha and
 // beta the angles between the hit plane's normal and d, r.  q clamped to [1/R^2, R^2],
 // R = ENVCAP_MAX_RATIO.  Fallbacks as envcap_parallax, with q = ratio^2.
-vec4 envcap_parallax_oblique(vec3 x, vec3 d, vec3 p, vec3 planes, int along)
+vec4 envcap_parallax_oblique(vec3 x, vec3 d, vec3 p, vec4 planes, int along)
 {
     int cross = 2 - along;
     vec3 xc = envcap_clamp_to_street(x, planes, along);
-    float dc = d[cross];
-    float tc = ENVCAP_FAR;
-    if (dc > 0.0) tc = (planes.y - xc[cross]) / dc;
-    else if (dc < 0.0) tc = (planes.x - xc[cross]) / dc;
-    float tg = ENVCAP_FAR;
-    if (d.y < 0.0) tg = (planes.z - xc.y) / d.y;
+    vec2 te = envcap_plane_exits(xc, d, planes, along);
+    float tc = te.x, tg = te.y;
     float t = min(min(tc, tg), ENVCAP_FAR);
     if (!(t < ENVCAP_FAR)) return vec4(d, 1.0);
     vec3 r = (xc - p) + t * d;
@@ -135,10 +158,22 @@ vec4 envcap_parallax_oblique(vec3 x, vec3 d, vec3 p, vec3 planes, int along)
     r = r / dp;
     float ratio = min(max(dp / max(t, ENVCAP_MIN_DIST), 1.0 / ENVCAP_MAX_RATIO), ENVCAP_MAX_RATIO);
     bool ground = tg < tc;
-    float ca = max(abs(ground ? d.y : d[cross]), ENVCAP_MIN_COS);
-    float cb = max(abs(ground ? r.y : r[cross]), ENVCAP_MIN_COS);
+    vec3 n = vec3(0.0);                  // the hit plane's unit normal: the ground's or the facades'
+    if (ground) {
+        float gl = sqrt(1.0 + planes.w * planes.w);
+        n.y = 1.0 / gl;
+        n[along] = -planes.w / gl;
+    } else {
+        n[cross] = 1.0;
+    }
+    float ca = max(abs(dot(n, d)), ENVCAP_MIN_COS);
+    float cb = max(abs(dot(n, r)), ENVCAP_MIN_COS);
     float q = ratio * ratio * (ca / cb);
     return vec4(r, min(max(q, 1.0 / (ENVCAP_MAX_RATIO * ENVCAP_MAX_RATIO)), ENVCAP_MAX_RATIO * ENVCAP_MAX_RATIO));
+}
+vec4 envcap_parallax_oblique(vec3 x, vec3 d, vec3 p, vec3 planes, int along)
+{
+    return envcap_parallax_oblique(x, d, p, vec4(planes, 0.0), along);
 }
 
 // A basis (e1, e2) across unit v: e1 = normalize(cross(v, X)), X = +x (+y when |v.x| >= 0.9).
@@ -156,7 +191,7 @@ void envcap_basis(vec3 v, out vec3 e1, out vec3 e2)
 // axis `major` (across r) are written to the out parameters.  w < 0 and NaN count as 0; w = +inf
 // gives a point footprint (0, 0).  img[j]: the four sigma rays' hits seen from the probe (unit;
 // a ray that hits no plane: its own direction), rays d + a e1, d - a e1, d + a e2, d - a e2.
-vec2 envcap_sigma_footprint_rays(vec3 x, vec3 d, float w, vec3 p, vec3 planes, int along, out vec3 r, out vec3 major,
+vec2 envcap_sigma_footprint_rays(vec3 x, vec3 d, float w, vec3 p, vec4 planes, int along, out vec3 r, out vec3 major,
                                  out vec3 img[4])
 {
     w = w > 0.0 ? w : 0.0;
@@ -208,10 +243,14 @@ vec2 envcap_sigma_footprint_rays(vec3 x, vec3 d, float w, vec3 p, vec3 planes, i
 }
 
 // As envcap_sigma_footprint_rays, without the rays' hits: returns vec2(var_minor, var_major).
-vec2 envcap_sigma_footprint(vec3 x, vec3 d, float w, vec3 p, vec3 planes, int along, out vec3 r, out vec3 major)
+vec2 envcap_sigma_footprint(vec3 x, vec3 d, float w, vec3 p, vec4 planes, int along, out vec3 r, out vec3 major)
 {
     vec3 img[4];
     return envcap_sigma_footprint_rays(x, d, w, p, planes, along, r, major, img);
+}
+vec2 envcap_sigma_footprint(vec3 x, vec3 d, float w, vec3 p, vec3 planes, int along, out vec3 r, out vec3 major)
+{
+    return envcap_sigma_footprint(x, d, w, p, vec4(planes, 0.0), along, r, major);
 }
 
 // Lobe power of a footprint variance v (per axis, of the sine): 1/v - 3, >= 0; v = 0 -> a power

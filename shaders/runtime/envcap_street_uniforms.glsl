@@ -5,7 +5,8 @@
 // set's manifest with envcap.runtime.street.RuntimeStreet.from_manifest(street).uniforms(powers)
 // .values() (names "envcap_street.<member>"), and pass `envcap_street` to the library's
 // envcap_sample_nearest / envcap_sample_blended / envcap_shade_lafortune, with shading points in
-// the street-local frame of the uniforms (StreetUniforms.to_local; see envcap_runtime.glsl).
+// the street-local frame of the uniforms (StreetUniforms.to_local: turned into the street's frame
+// and moved to its origin; see envcap_runtime.glsl) and world directions.
 #include "runtime/envcap_runtime.glsl"
 
 #ifdef ENVCAP_STREET_BLOCK

@@ -15,12 +15,13 @@ from envcap.runtime.mip import lobe_table
 from envcap.runtime.street import GLSL_STRUCT, GLSL_UNIFORM, StreetUniforms
 
 DECL = shader_source("runtime/envcap_street_uniforms.glsl")
-GL_TYPES = {"float": 0x1406, "vec4": 0x8B52, "int": 0x1404}   # GL_FLOAT, GL_FLOAT_VEC4, GL_INT
+GL_TYPES = {"float": 0x1406, "vec2": 0x8B50, "vec4": 0x8B52, "int": 0x1404}   # GL_FLOAT, GL_FLOAT_VEC2/4, GL_INT
 # Reads every member, so that the compiler keeps them all active.
 TOUCH = """
 int k = int(i);
 o[i] = vec4(envcap_street.along_s[k], envcap_street.pos[k].w + envcap_street.planes[k].y,
-            envcap_street.xk[k % ENVCAP_MAX_LEVELS], float(envcap_street.count + envcap_street.along + envcap_street.nlevels));
+            envcap_street.xk[k % ENVCAP_MAX_LEVELS] + envcap_street.frame.x * envcap_street.frame.y,
+            float(envcap_street.count + envcap_street.along + envcap_street.nlevels));
 """
 
 
@@ -57,7 +58,7 @@ def test_values_arrive_where_glsl_reads_them(gl_ctx):
     for f in StreetUniforms.glsl_fields():
         v = getattr(uni, f.name)
         assert np.shape(v) == (() if f.metadata["length"] == 1 else (f.metadata["length"],)) + \
-            ((4,) if f.metadata["glsl"] == "vec4" else ())
+            {"vec4": (4,), "vec2": (2,)}.get(f.metadata["glsl"], ())
     out = run_glsl(gl_ctx, TOUCH, {"a": np.zeros(MAX_PROBES)}, {"o": 4}, uniforms=uni.values(), declarations=DECL)["o"]
     P = street.positions.shape[0]
     # independent of StreetUniforms: the street's own arrays and the lobe table

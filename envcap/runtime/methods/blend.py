@@ -23,7 +23,7 @@ def street_rgba(chains: ProbeChains, street: RuntimeStreet, x: NDArray, d: NDArr
     i0, i1, t = probe_pair(x[..., street.along], street.along_coords)
     acc = np.zeros(d.shape[:-1] + (4,), dtype=np.float64)
     for idx, wt in ((i0, 1.0 - t), (i1, t)):
-        r, ratio = parallax(x, d, street.positions[idx], street.planes[idx], street.along)
+        r, ratio = parallax(x, d, street.positions[idx], street.lookup_planes[idx], street.along)
         acc += wt[..., None] * chains.fetch(r, street.layers[idx], shift_power(w, ratio))
     return acc
 

@@ -47,7 +47,8 @@ def depth_reproject(x: ArrayLike, d: ArrayLike, p: ArrayLike, distance: NDArray,
     m = d.shape[0]
     x = np.broadcast_to(np.asarray(x, np.float64).reshape(-1, 3), (m, 3))
     p = np.broadcast_to(np.asarray(p, np.float64).reshape(-1, 3), (m, 3))
-    planes = np.broadcast_to(np.asarray(planes, np.float64).reshape(-1, 3), (m, 3))
+    planes = np.asarray(planes, np.float64)
+    planes = np.broadcast_to(planes.reshape(-1, planes.shape[-1]), (m, planes.shape[-1]))   # 3, or 4 with a slope
     D = np.asarray(distance, np.float64)
     if D.ndim == 3:
         D, layer = D[None], None
@@ -102,7 +103,7 @@ def street_rgba(chains: ProbeChains, street: RuntimeStreet, x: NDArray, d: NDArr
     """The nearest probe sampled towards the ray's hit in its distance channel, shifted level."""
     i = street.nearest(x)
     layer = street.layers[i]
-    r, ratio = depth_reproject(x, d, street.positions[i], chains.distance, street.planes[i], street.along,
+    r, ratio = depth_reproject(x, d, street.positions[i], chains.distance, street.lookup_planes[i], street.along,
                                layer=layer, **parameters)
     shape = d.shape[:-1]
     return chains.fetch(r.reshape(d.shape), layer, shift_power(w, ratio.reshape(shape)))

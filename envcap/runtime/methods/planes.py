@@ -20,7 +20,7 @@ from envcap.runtime.street import RuntimeStreet
 def street_rgba(chains: ProbeChains, street: RuntimeStreet, x: NDArray, d: NDArray, w: NDArray) -> NDArray[np.float64]:
     """The nearest probe sampled towards the three-plane hit point, level ``z(w)``."""
     i = street.nearest(x)
-    r, _ = parallax(x, d, street.positions[i], street.planes[i], street.along)
+    r, _ = parallax(x, d, street.positions[i], street.lookup_planes[i], street.along)
     return chains.fetch(r, street.layers[i], w)
 
 

@@ -22,7 +22,7 @@ def street_rgba(chains: ProbeChains, street: RuntimeStreet, x: NDArray, d: NDArr
     """The nearest probe sampled towards the three-plane hit point at the shifted level (the street
     part of GLSL ``envcap_sample_probe``)."""
     i = street.nearest(x)
-    r, ratio = parallax(x, d, street.positions[i], street.planes[i], street.along)
+    r, ratio = parallax(x, d, street.positions[i], street.lookup_planes[i], street.along)
     return chains.fetch(r, street.layers[i], shift_power(w, ratio))
 
 

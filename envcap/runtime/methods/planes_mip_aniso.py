@@ -31,7 +31,7 @@ def street_rgba(chains: ProbeChains, street: RuntimeStreet, x: NDArray, d: NDArr
                 taps: int = 2) -> NDArray[np.float64]:
     """Mean of ``taps`` lookups of the nearest probe along the traced footprint's long axis."""
     i = street.nearest(x)
-    fp = sigma_footprint(x, d, w, street.positions[i], street.planes[i], street.along)
+    fp = sigma_footprint(x, d, w, street.positions[i], street.lookup_planes[i], street.along)
     v_tap = np.maximum(fp.var_minor, fp.var_major / (1.0 + (taps * taps - 1.0) / 3.0))
     with np.errstate(divide="ignore", invalid="ignore"):
         w_tap = np.maximum(np.reciprocal(v_tap) - 3.0, 0.0)

@@ -23,7 +23,7 @@ from envcap.runtime.street import RuntimeStreet
 def street_rgba(chains: ProbeChains, street: RuntimeStreet, x: NDArray, d: NDArray, w: NDArray) -> NDArray[np.float64]:
     """The nearest probe sampled towards the three-plane hit point at the traced footprint's level."""
     i = street.nearest(x)
-    fp = sigma_footprint(x, d, w, street.positions[i], street.planes[i], street.along)
+    fp = sigma_footprint(x, d, w, street.positions[i], street.lookup_planes[i], street.along)
     return chains.fetch(fp.r, street.layers[i], fp.power())
 
 

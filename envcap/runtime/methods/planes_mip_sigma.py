@@ -31,7 +31,7 @@ tap's own lobe).  Measured best of 0.5, 0.75, 0.9 in the canyon (w = 64).  GLSL 
 def street_rgba(chains: ProbeChains, street: RuntimeStreet, x: NDArray, d: NDArray, w: NDArray) -> NDArray[np.float64]:
     """Mean of four lookups of the nearest probe towards the sigma rays' hits."""
     i = street.nearest(x)
-    fp = sigma_footprint(x, d, w, street.positions[i], street.planes[i], street.along)
+    fp = sigma_footprint(x, d, w, street.positions[i], street.lookup_planes[i], street.along)
     v_tap = (1.0 - TAP_SHARE) * fp.var_minor
     with np.errstate(divide="ignore", invalid="ignore"):
         w_tap = np.maximum(np.reciprocal(v_tap) - 3.0, 0.0)

@@ -21,7 +21,8 @@ from envcap.runtime.street import PLANE_SETS, RuntimeStreet
 
 StreetRGBA = Callable[..., NDArray[np.float64]]
 """``street_rgba(chains: ProbeChains, street: RuntimeStreet, x (..., 3), d (..., 3), w (...), **parameters)
--> (..., 4)``: ``x`` shading points (m), ``d`` unit directions, ``w`` lobe powers (``inf`` = mirror),
+-> (..., 4)``: ``x`` shading points (m), ``d`` unit directions, both in the street's frame (its
+planes: ``street.lookup_planes``), ``w`` lobe powers (``inf`` = mirror),
 all broadcast to one shape; returns premultiplied street RGBA (alpha < 1 where the sky shows)."""
 
 
@@ -53,12 +54,14 @@ class ParallaxMethod:
 
     def __call__(self, chains: ProbeChains, street: RuntimeStreet, x: ArrayLike, d: ArrayLike,
                  w: ArrayLike) -> NDArray[np.float64]:
-        """Street RGBA ``(..., 4)`` of shading points ``x`` along unit ``d`` at lobe powers ``w``
-        (broadcast; vectors ``(..., 3)``)."""
+        """Street RGBA ``(..., 4)`` of WORLD shading points ``x`` along unit WORLD directions ``d`` at
+        lobe powers ``w`` (broadcast; vectors ``(..., 3)``): both are turned into the street's frame
+        (:meth:`RuntimeStreet.to_frame`) before ``street_rgba`` sees them, so a method works in
+        the frame (probe positions, planes, fetch directions) and the caller keeps the world."""
         if self.needs_distance and chains.distance is None:
             raise ValueError(f"method {self.name} needs the probe set's distance channel (EXR files)")
-        x = np.asarray(x, dtype=np.float64)
-        d = np.asarray(d, dtype=np.float64)
+        x = street.to_frame(np.asarray(x, dtype=np.float64))      # world -> the street's frame (a no-op
+        d = street.direction_to_frame(np.asarray(d, dtype=np.float64))   # for a street without one)
         shape = np.broadcast_shapes(x.shape, d.shape)
         x, d = np.broadcast_to(x, shape), np.broadcast_to(d, shape)
         w = np.broadcast_to(np.asarray(w, dtype=np.float64), shape[:-1])

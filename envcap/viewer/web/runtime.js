@@ -12,13 +12,13 @@ vec3 viewer_nearest(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 
 {
     int i = envcap_nearest_probe(x[s.along], s.along_s, s.count);
     float z = envcap_clamp_level(envcap_z_of_w(w, s.xk, s.nlevels), s.nlevels);
-    return envcap_over_sky(ENVCAP_PROBES_LOD(probes, d, s.pos[i].w, z), sky, d, w, s);
+    return envcap_over_sky(ENVCAP_PROBES_LOD(probes, envcap_frame_dir(d, s.frame), s.pos[i].w, z), sky, d, w, s);
 }
 // planes: three-plane parallax, unshifted level z(w) (numpy: methods/planes.py)
 vec3 viewer_planes(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet s)
 {
     int i = envcap_nearest_probe(x[s.along], s.along_s, s.count);
-    vec4 par = envcap_parallax(x, d, s.pos[i].xyz, s.planes[i].xyz, s.along);
+    vec4 par = envcap_parallax(x, envcap_frame_dir(d, s.frame), s.pos[i].xyz, s.planes[i], s.along);
     float z = envcap_clamp_level(envcap_z_of_w(w, s.xk, s.nlevels), s.nlevels);
     return envcap_over_sky(ENVCAP_PROBES_LOD(probes, par.xyz, s.pos[i].w, z), sky, d, w, s);
 }
@@ -80,6 +80,7 @@ export function setStreet(gl, prog, uniforms) {
     if (loc === null) continue;  // optimized out by this method's program
     if (INT.has(name)) gl.uniform1i(loc, v);
     else if (VEC4.has(name)) gl.uniform4fv(loc, new Float32Array(v));
+    else if (name === "frame") gl.uniform2fv(loc, new Float32Array(v));
     else gl.uniform1fv(loc, new Float32Array(v));
   }
 }
