@@ -56,16 +56,17 @@ def relative_error_map(pred: NDArray[np.floating], truth: NDArray[np.floating], 
 
 def plane_misfit(x: ArrayLike, distance: NDArray, alpha: NDArray, street: RuntimeStreet, rel: float = 0.2,
                  abs_m: float = 0.25) -> float:
-    """Share of the sphere (solid-angle weighted, 0..1) seen from ``x`` where the three nominal
+    """Share of the sphere (solid-angle weighted, 0..1) seen from the world point ``x`` (``distance``
+    captured with its axes along the street's frame) where the three nominal
     planes of the nearest probe are the wrong model: the true hit distance (``distance``
     ``(6, N, N)`` m from ``x``, geometry where ``alpha > 0.5``) and the planes' exit distance
     differ by more than ``rel`` (relative) + ``abs_m`` (m), or one of them sees the sky (no
     hit within 1 km) and the other does not.  Gaps, crossings, setbacks and open squares raise it.
     """
-    x = np.asarray(x, np.float64)
+    x = street.to_frame(np.asarray(x, np.float64))      # the capture's axes are the street's frame
     n = distance.shape[1]
     d = cube.texel_directions(n)
-    planes = street.planes[int(street.nearest(x))]
+    planes = street.lookup_planes[int(street.nearest(x))]
     xc = clamp_to_street(x, planes, street.along)
     t_model = exit_distance(xc, d, planes, street.along)
     geo = (np.asarray(alpha) > 0.5) & (np.asarray(distance) > 0)

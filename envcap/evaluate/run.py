@@ -11,7 +11,9 @@ materials (:mod:`envcap.evaluate.shading`).  Definitions, assumptions and measur
 ``docs/evaluation.md``.
 
 Conventions: world meters, +Y up (``envcap/core/cube.py``); cubes ``(6, M, M, C)``; colors linear
-HDR.  ``w = inf`` is the mirror (level 0, unfiltered).
+HDR.  ``w = inf`` is the mirror (level 0, unfiltered).  A street at any angle is evaluated in its
+frame: the truth cubes (street and sky) have their axes along it (``EvalPosition.yaw_deg``), the
+predictions are looked up along the same texel directions turned back into the world.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from tqdm import tqdm
 
 from envcap.core import cube as cubemod
+from envcap.core.street_frame import from_frame
 from envcap.evaluate.bounds import MAX_POSITIONS, check_evaluation, estimate_evaluation
 from envcap.evaluate.metrics import plane_misfit, relative_error_map, relative_rmse
 from envcap.evaluate.predict import Predictor
@@ -119,40 +122,43 @@ class PositionEvaluator:
         self.truth = truth
         self.predictor = predictor
         self.timings = {"predictions_s": 0.0, "shading_s": 0.0}
-        self._dirs: dict[int, NDArray[np.float64]] = {}
-        self._sky: dict[tuple[int, float, bool], NDArray[np.float64]] = {}
+        self._dirs: dict[tuple[int, float], NDArray[np.float64]] = {}
+        self._sky: dict[tuple[int, float, bool, float], NDArray[np.float64]] = {}
 
-    def directions(self, m: int) -> NDArray[np.float64]:
-        """Texel-center directions ``(6 m^2, 3)`` of an ``m`` cube."""
-        if m not in self._dirs:
-            self._dirs[m] = cubemod.texel_directions(m).reshape(-1, 3)
-        return self._dirs[m]
+    def directions(self, m: int, yaw_deg: float = 0.0) -> NDArray[np.float64]:
+        """World directions ``(6 m^2, 3)`` of the texel centers of an ``m`` cube whose axes are the
+        frame of a street at ``yaw_deg`` (0: the world's)."""
+        if (m, yaw_deg) not in self._dirs:
+            d = cubemod.texel_directions(m).reshape(-1, 3)
+            self._dirs[(m, yaw_deg)] = from_frame(d, yaw_deg) if yaw_deg else d
+        return self._dirs[(m, yaw_deg)]
 
-    def predicted_sky(self, m: int, w: float, sun: bool) -> NDArray[np.float64]:
-        """The predicted sky ``(6 m^2, 4)`` at lobe power ``w`` (the same at every position)."""
-        if (m, w, sun) not in self._sky:
-            d = self.directions(m)
-            self._sky[(m, w, sun)] = self.predictor.sky_rgb(d, np.full(d.shape[0], w), sun)
-        return self._sky[(m, w, sun)]
+    def predicted_sky(self, m: int, w: float, sun: bool, yaw_deg: float = 0.0) -> NDArray[np.float64]:
+        """The predicted sky ``(6 m^2, 4)`` at lobe power ``w`` on the texels of :meth:`directions`
+        (the same at every position of a street)."""
+        if (m, w, sun, yaw_deg) not in self._sky:
+            d = self.directions(m, yaw_deg)
+            self._sky[(m, w, sun, yaw_deg)] = self.predictor.sky_rgb(d, np.full(d.shape[0], w), sun)
+        return self._sky[(m, w, sun, yaw_deg)]
 
     def truth_at(self, ep: EvalPosition) -> TruthAt:
-        """Capture at ``ep`` and filter at every lobe power."""
-        cap = self.truth.capture(np.array(ep.position))
-        return TruthAt(ep, cap, self.truth.filtered(cap.rgba, self.settings.lobe_powers))
+        """Capture at ``ep`` (cube axes along its street's frame) and filter at every lobe power."""
+        cap = self.truth.capture(np.array(ep.position), ep.yaw_deg)
+        return TruthAt(ep, cap, self.truth.filtered(cap.rgba, self.settings.lobe_powers, ep.yaw_deg))
 
     def _truth_composites(self, part: Mapping[str, NDArray]) -> dict[bool, NDArray[np.float64]]:
         return {sun: composite(part["street"], part["sky" if sun else "sky_nosun"]) for sun in self.settings.suns}
 
     def _street(self, method: str, ep: EvalPosition, m: int, w: float) -> NDArray[np.float64]:
-        d = self.directions(m)
+        d = self.directions(m, ep.yaw_deg)
         st = self.predictor.street_rgba(method, ep.street, np.array(ep.position), d, np.full(d.shape[0], w))
         st = st.reshape(6, m, m, 4)
         if not np.all(np.isfinite(st)):
             raise ValueError(f"method {method} produced NaN/Inf at {ep.position}")
         return st
 
-    def _prediction(self, street_rgba: NDArray, m: int, w: float, sun: bool) -> NDArray[np.float64]:
-        return composite(street_rgba, self.predicted_sky(m, w, sun).reshape(6, m, m, -1))
+    def _prediction(self, street_rgba: NDArray, m: int, w: float, sun: bool, yaw_deg: float = 0.0) -> NDArray[np.float64]:
+        return composite(street_rgba, self.predicted_sky(m, w, sun, yaw_deg).reshape(6, m, m, -1))
 
     def error_rows(self, at: TruthAt) -> list[dict[str, Any]]:
         """One row per (lobe power, method, sun variant): the relative RMSE of the prediction."""
@@ -169,7 +175,7 @@ class PositionEvaluator:
                 for sun in self.settings.suns:
                     rows.append({"street": ep.street, "position_index": ep.index, "method": meth,
                                  "lobe_power": lobe_power_key(w), "sun": sun,
-                                 "rel_rmse": relative_rmse(self._prediction(st, m, w, sun), truth[sun]),
+                                 "rel_rmse": relative_rmse(self._prediction(st, m, w, sun, ep.yaw_deg), truth[sun]),
                                  "lateral_m": ep.lateral, "along_m": ep.along, "height_m": ep.height,
                                  "near_crossing": ep.near_crossing, "plane_misfit": misfit,
                                  "position": list(ep.position)})
@@ -185,7 +191,8 @@ class PositionEvaluator:
         for w, part in at.parts.items():
             err = float("nan")
             if True in self.settings.suns:
-                err = relative_rmse(composite(part["street"], part["sky"]), self.truth.physical(at.capture.rgba, w))
+                err = relative_rmse(composite(part["street"], part["sky"]),
+                                    self.truth.physical(at.capture.rgba, w, True, at.position.yaw_deg))
             rows.append({"position_index": at.position.index, "lobe_power": lobe_power_key(w), "rel_rmse": err})
         self.timings["predictions_s"] += time.perf_counter() - t0
         return rows
@@ -195,7 +202,8 @@ class PositionEvaluator:
         if not materials:
             return []
         t0 = time.perf_counter()
-        rows = shading_errors(self.predictor, at.position, at.capture.rgba, self.truth.sky_rgba, self.settings.methods,
+        sky = {s: self.truth.sky_cube(s, at.position.yaw_deg) for s in (True, False)}
+        rows = shading_errors(self.predictor, at.position, at.capture.rgba, sky, self.settings.methods,
                               materials, self.settings.suns)
         self.timings["shading_s"] += time.perf_counter() - t0
         return rows
@@ -209,7 +217,8 @@ class PositionEvaluator:
             m = part["street"].shape[1]
             store["truth"][w] = self._truth_composites(part)[primary]
             for meth in self.settings.methods:
-                store["pred"][(meth, w)] = self._prediction(self._street(meth, at.position, m, w), m, w, primary)
+                store["pred"][(meth, w)] = self._prediction(self._street(meth, at.position, m, w), m, w, primary,
+                                                            at.position.yaw_deg)
         store["maps"] = {k: relative_error_map(v, store["truth"][k[1]]) for k, v in store["pred"].items()}
         return store
 

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap.core.color import luminance
+from envcap.core.street_frame import from_frame
 from envcap.evaluate.predict import Predictor
 from envcap.evaluate.sweep import EvalPosition
 from envcap.prefilter import convolve_exact_dirs
@@ -94,10 +95,11 @@ def shading_errors(predictor: Predictor, ep: EvalPosition, capture_rgba: NDArray
     position ``ep``: the relative RMS error of Eq. 3 luminance over :func:`shading_frames`.
 
     ``capture_rgba``: the fresh capture ``(6, N, N, 4)``; ``sky_rgba[sun]``: the sky ``(6, N, N, 4)``
-    with (``True``) and without the sun.
+    with (``True``) and without the sun, both with their axes along the street's frame
+    (``ep.yaw_deg``; the shading frames are in those axes).
     """
     x = np.array(ep.position)
-    frames, views = shading_frames(predictor.streets[ep.street].along)
+    frames, views = shading_frames(predictor.streets[ep.street].along)   # in the capture's axes (the street's frame)
     rows = []
     for sun in suns:
         truth_env = exact_environment(composite(capture_rgba.astype(np.float64), sky_rgba[sun]))
@@ -106,7 +108,9 @@ def shading_errors(predictor: Predictor, ep: EvalPosition, capture_rgba: NDArray
             den = float(np.sqrt(np.mean(lt ** 2)))
             for meth in methods:
                 def env(dd: NDArray, ww: NDArray, meth: str = meth, sun: bool = sun) -> NDArray:
-                    pred = predictor.predict(meth, ep.street, x, dd.reshape(-1, 3), np.ravel(ww), sun)
+                    dw = dd.reshape(-1, 3)
+                    dw = from_frame(dw, ep.yaw_deg) if ep.yaw_deg else dw      # the runtime takes world directions
+                    pred = predictor.predict(meth, ep.street, x, dw, np.ravel(ww), sun)
                     return pred.reshape(dd.shape[:-1] + (3,))
                 lp = luminance(shade(env, mat, frames, views))
                 num = float(np.sqrt(np.mean((lp - lt) ** 2)))

@@ -1,7 +1,11 @@
 """Where the evaluator looks: sweeps of positions in the street volumes of a probe set.
 
-Conventions: world meters, +Y up; a street runs along world axis x or z between two facades
-(cross-axis coordinates ``facade_min < facade_max``) above its ground.
+Conventions: world meters, +Y up; a street runs along axis x or z of its frame (the world, or for
+a street at any angle the world turned by its yaw about its plan origin,
+:mod:`envcap.core.street_frame`) between two facades (cross-axis coordinates ``facade_min <
+facade_max``) above its ground (tilted along the street where the probes' planes have a slope).
+Positions are sampled and described (lateral, along, height) in the street's frame and handed out
+in world coordinates.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from envcap.core.street_frame import frame_to_world, world_to_frame
 from envcap.probeset.manifest import Manifest, Street
 
 
@@ -53,7 +58,8 @@ class EvalPosition:
     """One evaluation position: ``position`` (3,) m on street ``street``; ``lateral`` signed
     offset (m) from the street's probe line on its cross axis; ``along`` (m) distance along the
     street to the nearest probe; ``height`` (m) above the ground; ``near_crossing``: inside
-    another street's roadway (the three planes of this street are wrong there)."""
+    another street's roadway (the three planes of this street are wrong there); ``yaw_deg``: the
+    street's frame (the truth is captured with its cube axes along it; 0: the world's)."""
 
     street: str
     index: int
@@ -62,13 +68,16 @@ class EvalPosition:
     along: float
     height: float
     near_crossing: bool
+    yaw_deg: float = 0.0
 
 
 @dataclass(frozen=True)
 class StreetExtent:
-    """The volume of one street of a probe set: ``along`` / ``cross`` world axis indices, probe
-    coordinates ``probe_s`` (m, ascending) along it, facades ``fmin`` < ``fmax`` (m, cross axis),
-    ``ground`` height, street ``start`` .. ``end`` (m, along) and the probe line ``center`` (m, cross)."""
+    """The volume of one street of a probe set, in its frame: ``along`` / ``cross`` axis indices,
+    probe coordinates ``probe_s`` (m, ascending) along it, facades ``fmin`` < ``fmax`` (m, cross
+    axis), ``ground`` height, street ``start`` .. ``end`` (m, along) and the probe line ``center``
+    (m, cross); ``yaw_deg`` / ``origin_xz`` its frame; ``probe_ground`` / ``probe_slope`` ``(P,)``
+    each probe's ground height and slope (the ground under a point: that of the nearest probe)."""
 
     name: str
     along: int
@@ -80,6 +89,10 @@ class StreetExtent:
     start: float
     end: float
     center: float
+    yaw_deg: float = 0.0
+    origin_xz: tuple[float, float] = (0.0, 0.0)
+    probe_ground: NDArray[np.float64] | None = None
+    probe_slope: NDArray[np.float64] | None = None
 
     @staticmethod
     def from_manifest(street: Street) -> "StreetExtent":
@@ -87,24 +100,41 @@ class StreetExtent:
         if not street.probes:
             raise ValueError(f"street {street.name!r} has no probes")
         along = street.along_index
-        s = sorted(float(p.position[along]) for p in street.probes)
+        probes = street.probes_along()
+        yaw, oxz = street.frame_yaw_deg, street.frame_origin_xz
+        s = world_to_frame(np.array([p.position for p in probes], np.float64), yaw, oxz)[:, along]
         pl = street.planes
-        return StreetExtent(street.name, along, street.cross_index, np.array(s), float(pl.facade_min),
+        return StreetExtent(street.name, along, street.cross_index, s, float(pl.facade_min),
                             float(pl.facade_max), float(pl.ground), float(street.start), float(street.end),
-                            float(street.center))
+                            float(street.center), yaw, oxz, np.array([p.planes.ground for p in probes], np.float64),
+                            np.array([p.planes.slope for p in probes], np.float64))
+
+    def to_frame(self, x: ArrayLike) -> NDArray[np.float64]:
+        """World points ``x`` (..., 3) in the street's frame."""
+        return world_to_frame(x, self.yaw_deg, self.origin_xz)
+
+    def ground_at(self, s: float) -> float:
+        """Ground height (m) at along coordinate ``s``: the nearest probe's tilted ground where the
+        probes' grounds slope, else the street's nominal ground (today's positions)."""
+        if self.probe_ground is None or self.probe_slope is None or not np.any(self.probe_slope):
+            return self.ground
+        i = int(np.argmin(np.abs(self.probe_s - s)))
+        return float(self.probe_ground[i] + self.probe_slope[i] * (s - self.probe_s[i]))
 
     def contains(self, x: NDArray[np.float64]) -> bool:
-        """Whether ``x`` (3,) lies between the facades and the street's ends (any height)."""
-        return bool(self.fmin <= x[self.cross] <= self.fmax and self.start <= x[self.along] <= self.end)
+        """Whether the world point ``x`` (3,) lies between the facades and the street's ends (any height)."""
+        f = self.to_frame(x)
+        return bool(self.fmin <= f[self.cross] <= self.fmax and self.start <= f[self.along] <= self.end)
 
     def position(self, index: int, x: NDArray[np.float64], streets: Sequence["StreetExtent"],
                  height: float | None = None) -> EvalPosition:
-        """The :class:`EvalPosition` of ``x`` (3,) on this street (``streets``: all of the probe set;
-        ``height`` above the ground if known exactly, else ``x[1] - ground``)."""
+        """The :class:`EvalPosition` of the world point ``x`` (3,) on this street (``streets``: all of
+        the probe set; ``height`` above the ground if known exactly, else ``x[1]`` - the ground under it)."""
+        f = self.to_frame(x)
         return EvalPosition(self.name, index, (float(x[0]), float(x[1]), float(x[2])),
-                            float(x[self.cross] - self.center), float(np.min(np.abs(self.probe_s - x[self.along]))),
-                            float(x[1] - self.ground if height is None else height),
-                            any(o.contains(x) for o in streets if o.name != self.name))
+                            float(f[self.cross] - self.center), float(np.min(np.abs(self.probe_s - f[self.along]))),
+                            float(x[1] - self.ground_at(f[self.along]) if height is None else height),
+                            any(o.contains(x) for o in streets if o.name != self.name), self.yaw_deg)
 
 
 def _extents(manifest: Manifest) -> list[StreetExtent]:
@@ -138,11 +168,11 @@ def sample_positions(manifest: Manifest, sweep: Sweep = DEFAULT_SWEEP) -> list[E
         crosses = rng.uniform(clo, chi, n)
         heights = rng.uniform(sweep.heights[0], sweep.heights[1], n)
         for i in range(n):
-            x = np.zeros(3)
-            x[ext.along] = alongs[i]
-            x[ext.cross] = crosses[i]
-            x[1] = ext.ground + heights[i]
-            out.append(ext.position(len(out), x, extents, heights[i]))
+            f = np.zeros(3)
+            f[ext.along] = alongs[i]
+            f[ext.cross] = crosses[i]
+            f[1] = ext.ground_at(alongs[i]) + heights[i]
+            out.append(ext.position(len(out), frame_to_world(f, ext.yaw_deg, ext.origin_xz), extents, heights[i]))
     return out
 
 
@@ -159,6 +189,7 @@ def positions_from_array(manifest: Manifest, positions: ArrayLike) -> list[EvalP
     def cost(ext: StreetExtent, x: NDArray[np.float64]) -> float:
         if ext.contains(x):
             return -1.0
-        return abs(x[ext.cross] - ext.center) + max(0.0, ext.start - x[ext.along], x[ext.along] - ext.end)
+        f = ext.to_frame(x)
+        return abs(f[ext.cross] - ext.center) + max(0.0, ext.start - f[ext.along], f[ext.along] - ext.end)
 
     return [extents[int(np.argmin([cost(e, x) for e in extents]))].position(i, x, extents) for i, x in enumerate(p)]
