@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from envcap.core.lobes import LobeLadder
 from envcap.evaluate.truth import with_alpha
 from envcap.prefilter import prefilter_chain
+from envcap.prefilter.rungs import prefilter_rungs
 from envcap.probeset.probe_set import ProbeSet
 from envcap.runtime import methods
 from envcap.runtime.chains import ProbeChains, SkyChain
@@ -46,8 +47,14 @@ class Predictor:
         # The baked sky map holds the sun only when the manifest says so (bake default: no sun,
         # the sun is an analytic light); the other variant is filtered here when a sky is given.
         self.baked_sun = manifest.sky.sun_baked_in_map
-        self.sky_levels = {self.baked_sun: SkyChain(probe_set.sky_levels)}
-        if sky is not None:
+        rungs = self.chains.ladder   # a rung-ladder set: the sky is an R-layer rung array too
+        self.sky_levels = {self.baked_sun: SkyChain(probe_set.sky_levels) if rungs is None
+                           else SkyChain(probe_set.sky_rungs or [], rungs)}
+        if sky is not None and rungs is not None:
+            ns = self.sky_levels[self.baked_sun].levels[0].shape[-2]
+            self.sky_levels[not self.baked_sun] = SkyChain(prefilter_rungs(
+                with_alpha(sky.cube(ns, include_sun=not self.baked_sun)), rungs, quality=quality, ctx=ctx), rungs)
+        elif sky is not None:
             ns = self.sky_levels[self.baked_sun].levels[0].shape[1]
             powers = tuple(float(p) for p in self.chains.powers)
             lad = LobeLadder(tuple(max(ns >> k, 1) for k in range(len(powers))), powers)

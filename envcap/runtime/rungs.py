@@ -24,7 +24,7 @@ from envcap.prefilter.rungs import prefilter_rungs
 from envcap.probeset.probe_set import ProbeSet
 from envcap.runtime.mip import lobe_table, z_of_w
 
-__all__ = ["MAX_RUNGS", "RungChains", "rung_table", "rung_position", "rung_fetch", "rung_chains_of"]
+__all__ = ["MAX_RUNGS", "RungChains", "rung_table", "rung_position", "rung_fetch", "rung_chains_of", "rung_street_uniforms"]
 
 MAX_RUNGS = 48
 """Most rungs of a rung table (length of the GLSL ``xr`` array).  GLSL ``#define ENVCAP_MAX_RUNGS``."""
@@ -112,3 +112,17 @@ def rung_chains_of(probe_set: ProbeSet, mode: str = "half_octave", quality: str 
                              sky=sky0 if sky_alpha else None)
     sky = prefilter_rungs(sky0, lad, quality=quality, ctx=ctx)  # type: ignore[arg-type]
     return RungChains(probes, lad), RungChains(sky, lad)
+
+
+def rung_street_uniforms(uniforms: Any, ladder: RungLadder, uniform: str = "envcap_street") -> dict[str, Any]:
+    """The values of a street's ``EnvcapStreet`` uniform for the rung street variant
+    (``shaders/runtime/envcap_rung_street.glsl``): ``uniforms.values(uniform)`` (a
+    :class:`envcap.runtime.street.StreetUniforms`, any lobe table) with ``xk`` the rung table of
+    ``ladder`` padded to :data:`MAX_RUNGS` (the variant's ``ENVCAP_MAX_LEVELS``) and ``nlevels`` its
+    number of rungs.  ``pos[i].w`` stays probe ``i``'s index (the variant multiplies it by ``R``)."""
+    values = dict(uniforms.values(uniform))
+    xr = np.zeros(MAX_RUNGS, np.float32)
+    xr[:ladder.rungs] = rung_table(ladder.powers, np.float32)
+    values[f"{uniform}.xk"] = xr
+    values[f"{uniform}.nlevels"] = int(ladder.rungs)
+    return values

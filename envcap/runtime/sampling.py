@@ -17,6 +17,7 @@ from envcap.runtime import methods
 from envcap.runtime.chains import ProbeChains, SkyChain
 from envcap.runtime.methods import ParallaxMethod
 from envcap.runtime.mip import level_of_power
+from envcap.runtime.rungs import rung_fetch
 from envcap.runtime.street import RuntimeStreet
 
 
@@ -31,8 +32,12 @@ def composite(street: ArrayLike, sky: ArrayLike, dtype: Any = np.float64) -> NDA
 def sample_sky(sky: SkyChain | Sequence[NDArray], d: ArrayLike, w: ArrayLike, xk: ArrayLike) -> NDArray[np.float64]:
     """The sky ``(..., C)`` along unit ``d`` at the unshifted level ``z(w)`` (the sky is at infinity:
     no parallax, no mip shift).  ``sky``: a :class:`SkyChain` or its levels ``[k]``:
-    ``(6, M_k, M_k, C)`` on the ladder ``xk`` (checked finite: build the chain once to check once)."""
-    return cube_sampling.sample_cube(SkyChain.of(sky).levels, d, level_of_power(w, xk))
+    ``(6, M_k, M_k, C)`` on the ladder ``xk`` (checked finite: build the chain once to check once).
+    A rung-ladder sky (``SkyChain.ladder``): two rungs blended on the rung table ``xk``."""
+    chain = SkyChain.of(sky)
+    if chain.ladder is not None:
+        return rung_fetch(chain.levels, d, 0.0, w, xk, chain.ladder.per_level)
+    return cube_sampling.sample_cube(chain.levels, d, level_of_power(w, xk))
 
 
 def sample_street(chains: ProbeChains, sky_levels: SkyChain | Sequence[NDArray], street: RuntimeStreet, x: ArrayLike,

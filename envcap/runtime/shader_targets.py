@@ -113,14 +113,15 @@ for (int k = 0; k < ENVCAP_MAX_PROBES; ++k) {
     s.along_s[k] = float(k) * 5.0; s.pos[k] = vec4(float(k) * 5.0, 2.0, 0.0, float(k)); s.planes[k] = vec4(-5.0, 5.0, 0.0, 0.0);
 }
 for (int k = 0; k < ENVCAP_MAX_LEVELS; ++k) s.xk[k] = 16.0 - float(k);
-s.count = 4; s.along = 0; s.nlevels = 5;
+s.count = 4; s.along = 0; s.nlevels = 5; s.frame = normalize(vec2(1.0, c.z));
 """
 
 RUNTIME_UNITS: dict[str, RuntimeUnit] = {
     "envcap_street": RuntimeUnit(("runtime/envcap_street.glsl",), "", """
 float along[ENVCAP_MAX_PROBES];
 for (int k = 0; k < ENVCAP_MAX_PROBES; ++k) along[k] = float(k) * c.w;
-vec4 par = envcap_parallax(a.xyz, normalize(b.xyz), c.xyz, vec3(-5.0, 5.0, 0.0), 2);
+vec4 par = envcap_parallax(a.xyz, envcap_frame_dir(normalize(b.xyz), normalize(c.xy)), c.xyz, vec3(-5.0, 5.0, 0.0), 2);
+par += envcap_parallax(a.xyz, normalize(b.xyz), c.xyz, vec4(-5.0, 5.0, 0.0, c.z), 0);
 vec3 pr = envcap_probe_pair(a.w, along, 8);
 float t = envcap_exit_distance(envcap_clamp_to_street(a.xyz, vec3(-5.0, 5.0, 0.0), 0), b.xyz, vec3(-5.0, 5.0, 0.0), 0);
 o = par + vec4(pr, t) + vec4(float(envcap_nearest_probe(a.w, along, 8)) + envcap_shift_power(b.w, par.w));
@@ -135,6 +136,11 @@ float xr[ENVCAP_MAX_RUNGS];
 for (int k = 0; k < ENVCAP_MAX_RUNGS; ++k) xr[k] = 48.0 - float(k);
 o = envcap_lafortune_lobe(normalize(a.xyz), b.xyz, b.w) + vec4(envcap_z_of_w(a.w, xk, 5));
 o += envcap_rung_fetch(probes, normalize(b.xyz), 0.0, a.w, xr, 8, 2);"""),
+    "envcap_rung_street": RuntimeUnit(("runtime/envcap_rung_street.glsl",), """ENVCAP_BINDING(3) uniform ENVCAP_PROBES_SAMPLER probes;
+ENVCAP_BINDING(4) uniform ENVCAP_SKY_SAMPLER sky;
+""", _LOCAL_STREET + """
+vec3 n = normalize(b.xyz);
+o = vec4(envcap_sample_nearest(probes, sky, a.xyz, n, c.w, s) + envcap_sample_blended(probes, sky, a.xyz, n, c.w, s), 1.0);"""),
     "envcap_probe_texture": RuntimeUnit(("runtime/envcap_probe_texture.glsl",),
                                         "ENVCAP_BINDING(3) uniform ENVCAP_PROBES_SAMPLER probes;\n", """
 o = ENVCAP_PROBES_LOD(probes, normalize(b.xyz), a.w, c.w);"""),
@@ -148,12 +154,20 @@ L += envcap_sample_blended(probes, sky, a.xyz, n, c.w, s) + envcap_sample_obliqu
 L += envcap_sample_footprint(probes, sky, a.xyz, n, c.w, s) + envcap_sample_aniso(probes, sky, a.xyz, n, c.w, s);
 L += envcap_sample_sigma(probes, sky, a.xyz, n, c.w, s);
 o = vec4(L, 1.0);"""),
+    "envcap_depth_refine": RuntimeUnit(("runtime/envcap_depth_refine.glsl",),
+                                       _SAMPLERS + "ENVCAP_BINDING(5) uniform ENVCAP_DISTANCE_SAMPLER dist;\n",
+                                       _LOCAL_STREET + """
+o = vec4(envcap_sample_depth_refine(probes, sky, dist, a.xyz, normalize(b.xyz), c.w, s), 1.0);"""),
     "envcap_street_uniforms": RuntimeUnit(("runtime/envcap_street_uniforms.glsl",), _SAMPLERS, """
 vec3 n = normalize(b.xyz);
 o = vec4(envcap_sample_nearest(probes, sky, a.xyz, n, c.w, envcap_street)
          + envcap_sample_blended(probes, sky, a.xyz, n, c.w, envcap_street), 1.0);"""),
-    "envcap_street_map": RuntimeUnit(("runtime/envcap_street_map.glsl",), "ENVCAP_BINDING(5) uniform usampler2D street_map;\n", """
-o = vec4(float(envcap_street_map_id(street_map, c.xy, c.z, a.xz)));"""),
+    "envcap_street_map": RuntimeUnit(("runtime/envcap_street_map.glsl",), "ENVCAP_BINDING(5) uniform usampler2D street_map;\n"
+                                     "ENVCAP_BINDING(6) uniform sampler2D frames;\nENVCAP_BINDING(7) uniform usampler2D ranges;\n", """
+uvec4 range;
+vec3 local;
+uint id = envcap_city_locate(street_map, c.xy, c.z, frames, ranges, a.xyz, range, local);
+o = vec4(float(envcap_street_map_id(street_map, c.xy, c.z, a.xz) + id + range.w), local);"""),
     "envcap_dynamic": RuntimeUnit(("runtime/envcap_dynamic.glsl",), "", """
 vec4 lobe = envcap_sphere_lobe(a.xyz, c);
 o = envcap_lobe_product(lobe.xyz, b.xyz, lobe.w, b.w) + envcap_occlusion(lobe.xyz, b.xyz, lobe.w, b.w);"""),
@@ -168,6 +182,14 @@ envcap_dynamic_terms(a.xyz, vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), vec3(0.0, 
                      vec3(0.5), C, rho, 2, blocked, bounced);
 o = vec4(blocked + bounced, envcap_cap_overlap(a.w, b.w, c.w));""",
         (("ENVCAP_DYNAMIC_ENVIRONMENT", "unit_environment"),)),
+    "envcap_sky_visibility": RuntimeUnit(("runtime/envcap_sky_visibility.glsl",),
+                                         "ENVCAP_BINDING(3) uniform ENVCAP_PROBES_SAMPLER probes;\n"
+                                         "ENVCAP_BINDING(5) uniform ENVCAP_PROBES_SAMPLER skyd;\n", """
+float xr[ENVCAP_MAX_RUNGS];
+for (int k = 0; k < ENVCAP_MAX_RUNGS; ++k) xr[k] = 16.0 - 0.25 * float(k);
+vec3 ksh[ENVCAP_SKY_VIS_MAX_SH];
+for (int k = 0; k < ENVCAP_SKY_VIS_MAX_SH; ++k) ksh[k] = vec3(0.1 * float(k));
+o = vec4(envcap_sky_visible(probes, skyd, normalize(b.xyz), a.w, c.z, c.w, xr, 12, 4, 1, ksh, 9, a.x, a.yzw, b.xyz, 2), 1.0);"""),
     "envcap_face_atlas": RuntimeUnit(("runtime/envcap_face_atlas.glsl",), "ENVCAP_BINDING(3) uniform sampler2DArray atlas;\n", """
 o = envcap_face_atlas_lod(atlas, normalize(b.xyz), a.w, c.w);"""),
 }

@@ -48,22 +48,30 @@ float envcap_rung_of_w(float w, float xr[ENVCAP_MAX_RUNGS], int n)
     return float(n - 1);
 }
 
-// The cos^w-convolved texel along d of the probe whose rungs start at layer `base`: rungs
-// floor(u) and the next, each one bilinear fetch at its integer level, blended linearly in u
-// (two bilinear fetches: the texel reads of one trilinear fetch; one where u is a whole rung).
-vec4 envcap_rung_fetch(ENVCAP_PROBES_SAMPLER tex, vec3 d, float base, float w, float xr[ENVCAP_MAX_RUNGS],
-                       int n, int per_level)
+// The texel along d at continuous rung position u (>= 0, at most the last rung; NaN -> 0) of the
+// probe whose rungs start at layer `base`: rungs floor(u) and the next, each one bilinear fetch at
+// its integer level (ENVCAP_PROBES_LOD as the file is included), blended linearly in u.  The street
+// rung variant (runtime/envcap_rung_street.glsl) routes every probe and sky lookup through this.
+vec4 envcap_rung_lod(ENVCAP_PROBES_SAMPLER tex, vec3 d, float base, float u, int per_level)
 {
     per_level = max(per_level, 1);
-    n = clamp(n, 1, ENVCAP_MAX_RUNGS);
-    float u = envcap_rung_of_w(w, xr, n);
+    u = u > 0.0 ? u : 0.0;
     int i0 = int(floor(u));
-    int i1 = min(i0 + 1, n - 1);
     float t = u - float(i0);
     vec4 a = ENVCAP_PROBES_LOD(tex, d, base + float(i0 % per_level), float(i0 / per_level));
     if (!(t > 0.0)) return a;
+    int i1 = i0 + 1;
     vec4 b = ENVCAP_PROBES_LOD(tex, d, base + float(i1 % per_level), float(i1 / per_level));
     return a + t * (b - a);
+}
+
+// The cos^w-convolved texel along d of the probe whose rungs start at layer `base`: rungs
+// floor(u) and the next at u = envcap_rung_of_w(w), blended linearly in u (envcap_rung_lod; two
+// bilinear fetches: the texel reads of one trilinear fetch; one where u is a whole rung).
+vec4 envcap_rung_fetch(ENVCAP_PROBES_SAMPLER tex, vec3 d, float base, float w, float xr[ENVCAP_MAX_RUNGS],
+                       int n, int per_level)
+{
+    return envcap_rung_lod(tex, d, base, envcap_rung_of_w(w, xr, n), per_level);
 }
 
 // One specular lobe of a Lafortune BRDF, term rho_s * max(u . Cv, 0)^w with

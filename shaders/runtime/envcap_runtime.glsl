@@ -6,13 +6,17 @@
 // uniform with runtime/envcap_street_uniforms.glsl and fill it from the probe set's manifest
 // (envcap.runtime.street.RuntimeStreet.uniforms(powers), the Python mirror StreetUniforms).
 //
-// Coordinates are street-local: every position in EnvcapStreet is world meters minus the street's
-// origin (StreetUniforms.origin, float64 on the host, not uploaded: its probes' box center rounded
-// to whole km), subtracted in float64 and rounded to float32 once.  The shading point x passed to
-// the functions below must be in the same frame: float32(x_world - origin) computed in float64
-// (StreetUniforms.to_local), or camera-relative plus float32(camera - origin) computed in float64.
-// A street 10^6 m from the world origin then samples like the same street at the origin (world
-// float32 coordinates there have ~6 cm steps).  Directions d are frame-independent.
+// Coordinates are street-local: every position in EnvcapStreet is in the street's frame (the world
+// for a street along x or z; turned by the street's yaw about its plan origin for a street at any
+// angle, envcap.core.street_frame) minus the street's origin (StreetUniforms.origin, float64 on
+// the host, not uploaded: its probes' box center rounded to whole km), computed in float64 and
+// rounded to float32 once.  The shading point x passed to the functions below must be in the same
+// frame: StreetUniforms.to_local(x_world) (float32(world_to_frame(x) - origin), float64 maths),
+// or camera-relative (in the frame) plus float32(camera_frame - origin) computed in float64.  A
+// street 10^6 m from the world origin then samples like the same street at the origin (world
+// float32 coordinates there have ~6 cm steps).  Directions d are WORLD directions: the
+// envcap_sample_* functions turn them into the street's frame with EnvcapStreet.frame (one 2x2
+// rotation) for the parallax and the probe fetches; the sky is fetched along d itself.
 //
 // Textures: `probes` is a cube-map array (layer = probe) of premultiplied RGBA street radiance
 // (alpha 0 where the sky shows), level k convolved with the normalized cos^powers[k] lobe;
@@ -24,6 +28,12 @@
 #include "runtime/envcap_probe_texture.glsl"
 #include "runtime/envcap_street.glsl"
 #include "runtime/envcap_lobes.glsl"
+// ENVCAP_SKY_SAMPLER and ENVCAP_SKY_LOD(sky, dir, lod): the sky texture and its lookup, a plain cube
+// map unless a variant defines both first (runtime/envcap_rung_street.glsl: the sky's rung array).
+#ifndef ENVCAP_SKY_SAMPLER
+#define ENVCAP_SKY_SAMPLER samplerCube
+#define ENVCAP_SKY_LOD(sky, dir, lod) textureLod(sky, dir, lod)
+#endif
 
 // One street of a probe set, as the runtime samples it.  Mirrored field for field (same names,
 // same order) by envcap.runtime.street.StreetUniforms; tests/runtime/test_street_uniforms.py
@@ -31,11 +41,13 @@
 struct EnvcapStreet {
     float along_s[ENVCAP_MAX_PROBES];  // along-street coordinate of probe i (m, street-local), ascending
     vec4 pos[ENVCAP_MAX_PROBES];       // probe i: xyz street-local position (m), w = its layer in `probes`
-    vec4 planes[ENVCAP_MAX_PROBES];    // probe i: (facade_min, facade_max, ground) in street-local m, w unused
+    vec4 planes[ENVCAP_MAX_PROBES];    // probe i: (facade_min, facade_max, ground0, slope) in street-local m:
+                                       // ground height ground0 + slope * x[along] (slope 0: flat at ground0)
     int count;                         // number of probes, 1 .. ENVCAP_MAX_PROBES
-    int along;                         // street axis: 0 = x, 2 = z
+    int along;                         // street axis: 0 = x, 2 = z (of the street's frame)
     float xk[ENVCAP_MAX_LEVELS];       // log2(1 + powers[k]): the z(w) table of the lobe ladder
     int nlevels;                       // number of levels, 1 .. ENVCAP_MAX_LEVELS
+    vec2 frame;                        // (cos yaw, sin yaw) of the street's frame; (1, 0): the world
 };
 
 // Clamp a continuous mip level into the chain [0, n - 1]; NaN -> 0.
@@ -51,12 +63,13 @@ vec3 envcap_composite(vec4 street, vec3 sky)
     return street.rgb + (1.0 - clamp(street.a, 0.0, 1.0)) * sky;
 }
 
-// Radiance of the environment convolved with the cos^w lobe around unit direction d, as seen
-// from shading point x, from one probe: `layer` of `probes`, probe position p, three planes.
-// The street is sampled along the parallax vector at the shifted level z(w * ratio^2); the sky
-// along d itself at z(w) (the sky is at infinity: no parallax, no shift).
-vec3 envcap_sample_probe(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w,
-                         float layer, vec3 p, vec3 planes, int along,
+// Radiance of the environment convolved with the cos^w lobe around unit direction d (in the
+// street's frame), as seen from shading point x, from one probe: `layer` of `probes`, probe
+// position p, its planes.  The street is sampled along the parallax vector at the shifted level
+// z(w * ratio^2); the sky along dsky (d in the world) at z(w) (the sky is at infinity: no
+// parallax, no shift).
+vec3 envcap_sample_probe(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, vec3 x, vec3 d, vec3 dsky, float w,
+                         float layer, vec3 p, vec4 planes, int along,
                          float xk[ENVCAP_MAX_LEVELS], int nlevels)
 {
     vec4 par = envcap_parallax(x, d, p, planes, along);
@@ -64,60 +77,62 @@ vec3 envcap_sample_probe(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, 
     vec4 st = ENVCAP_PROBES_LOD(probes, par.xyz, layer, zs);
     if (!(st.a < 1.0)) return st.rgb;            // street covers the lobe: no sky fetch needed
     float zk = envcap_clamp_level(envcap_z_of_w(w, xk, nlevels), nlevels);
-    return envcap_composite(st, textureLod(sky, d, zk).rgb);
+    return envcap_composite(st, ENVCAP_SKY_LOD(sky, dsky, zk).rgb);
 }
 
-// As envcap_sample_probe, with the probe of `street` nearest to x along the street.
-vec3 envcap_sample_nearest(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+// As envcap_sample_probe, with the probe of `street` nearest to x along the street; d in the world.
+vec3 envcap_sample_nearest(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, vec3 x, vec3 d, float w, EnvcapStreet street)
 {
     int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
-    return envcap_sample_probe(probes, sky, x, d, w, street.pos[i].w, street.pos[i].xyz, street.planes[i].xyz,
-                               street.along, street.xk, street.nlevels);
+    return envcap_sample_probe(probes, sky, x, envcap_frame_dir(d, street.frame), d, w, street.pos[i].w,
+                               street.pos[i].xyz, street.planes[i], street.along, street.xk, street.nlevels);
 }
 
 // Beyond the paper: blend the two probes that bracket x along the street, each with its own
 // parallax and mip shift, weights linear in the along-street coordinate (continuous: no
 // popping at the midpoint).  The sky term is shared.
-vec3 envcap_sample_blended(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+vec3 envcap_sample_blended(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, vec3 x, vec3 d, float w, EnvcapStreet street)
 {
     vec3 pr = envcap_probe_pair(x[street.along], street.along_s, street.count);
     int i0 = int(pr.x), i1 = int(pr.y);
-    vec4 a = envcap_parallax(x, d, street.pos[i0].xyz, street.planes[i0].xyz, street.along);
-    vec4 b = envcap_parallax(x, d, street.pos[i1].xyz, street.planes[i1].xyz, street.along);
+    vec3 df = envcap_frame_dir(d, street.frame);
+    vec4 a = envcap_parallax(x, df, street.pos[i0].xyz, street.planes[i0], street.along);
+    vec4 b = envcap_parallax(x, df, street.pos[i1].xyz, street.planes[i1], street.along);
     float za = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, a.w), street.xk, street.nlevels), street.nlevels);
     float zb = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, b.w), street.xk, street.nlevels), street.nlevels);
     vec4 st = (1.0 - pr.z) * ENVCAP_PROBES_LOD(probes, a.xyz, street.pos[i0].w, za)
             + pr.z * ENVCAP_PROBES_LOD(probes, b.xyz, street.pos[i1].w, zb);
     if (!(st.a < 1.0)) return st.rgb;            // street covers the lobe: no sky fetch needed
     float zk = envcap_clamp_level(envcap_z_of_w(w, street.xk, street.nlevels), street.nlevels);
-    return envcap_composite(st, textureLod(sky, d, zk).rgb);
+    return envcap_composite(st, ENVCAP_SKY_LOD(sky, d, zk).rgb);
 }
 
-// The street part of a lookup composited over the sky at d, level z(w) (skipped where alpha >= 1).
-vec3 envcap_over_sky(vec4 st, samplerCube sky, vec3 d, float w, EnvcapStreet street)
+// The street part of a lookup composited over the sky at d (world), level z(w) (skipped where alpha >= 1).
+vec3 envcap_over_sky(vec4 st, ENVCAP_SKY_SAMPLER sky, vec3 d, float w, EnvcapStreet street)
 {
     if (!(st.a < 1.0)) return st.rgb;
     float zk = envcap_clamp_level(envcap_z_of_w(w, street.xk, street.nlevels), street.nlevels);
-    return envcap_composite(st, textureLod(sky, d, zk).rgb);
+    return envcap_composite(st, ENVCAP_SKY_LOD(sky, d, zk).rgb);
 }
 
 // Beyond the paper: the nearest probe with the oblique mip shift w' = w ratio^2 cos(alpha)/cos(beta)
 // (envcap_parallax_oblique; method planes_mip_oblique).  Fetches: 1 probe + 1 sky, as envcap_sample_nearest.
-vec3 envcap_sample_oblique(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+vec3 envcap_sample_oblique(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, vec3 x, vec3 d, float w, EnvcapStreet street)
 {
     int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
-    vec4 par = envcap_parallax_oblique(x, d, street.pos[i].xyz, street.planes[i].xyz, street.along);
+    vec4 par = envcap_parallax_oblique(x, envcap_frame_dir(d, street.frame), street.pos[i].xyz, street.planes[i], street.along);
     float zs = envcap_clamp_level(envcap_z_of_w(max(w, 0.0) * par.w, street.xk, street.nlevels), street.nlevels);
     return envcap_over_sky(ENVCAP_PROBES_LOD(probes, par.xyz, street.pos[i].w, zs), sky, d, w, street);
 }
 
 // Beyond the paper: the nearest probe at the level of the lobe's traced footprint (four sigma rays,
 // envcap_sigma_footprint; method planes_mip_footprint).  Fetches: 1 probe + 1 sky.
-vec3 envcap_sample_footprint(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+vec3 envcap_sample_footprint(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, vec3 x, vec3 d, float w, EnvcapStreet street)
 {
     int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
     vec3 r, m;
-    vec2 v = envcap_sigma_footprint(x, d, w, street.pos[i].xyz, street.planes[i].xyz, street.along, r, m);
+    vec2 v = envcap_sigma_footprint(x, envcap_frame_dir(d, street.frame), w, street.pos[i].xyz, street.planes[i],
+                                    street.along, r, m);
     float wp = envcap_footprint_power(sqrt(v.x * v.y));
     float zs = envcap_clamp_level(envcap_z_of_w(wp, street.xk, street.nlevels), street.nlevels);
     return envcap_over_sky(ENVCAP_PROBES_LOD(probes, r, street.pos[i].w, zs), sky, d, w, street);
@@ -130,11 +145,12 @@ vec3 envcap_sample_footprint(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3
 #ifndef ENVCAP_ANISO_TAPS
 #define ENVCAP_ANISO_TAPS 2
 #endif
-vec3 envcap_sample_aniso(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+vec3 envcap_sample_aniso(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, vec3 x, vec3 d, float w, EnvcapStreet street)
 {
     int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
     vec3 r, m;
-    vec2 v = envcap_sigma_footprint(x, d, w, street.pos[i].xyz, street.planes[i].xyz, street.along, r, m);
+    vec2 v = envcap_sigma_footprint(x, envcap_frame_dir(d, street.frame), w, street.pos[i].xyz, street.planes[i],
+                                    street.along, r, m);
     float n = float(ENVCAP_ANISO_TAPS);
     float vt = max(v.x, v.y / (1.0 + (n * n - 1.0) / 3.0));
     float zs = envcap_clamp_level(envcap_z_of_w(envcap_footprint_power(vt), street.xk, street.nlevels), street.nlevels);
@@ -153,11 +169,12 @@ vec3 envcap_sample_aniso(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, 
 // power of the variance (1 - F) V_minor, F = ENVCAP_TAP_SHARE.  They follow a footprint that a plane
 // switch splits in two.  Fetches: 4 probes + 1 sky.
 const float ENVCAP_TAP_SHARE = 0.75;
-vec3 envcap_sample_sigma(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 d, float w, EnvcapStreet street)
+vec3 envcap_sample_sigma(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, vec3 x, vec3 d, float w, EnvcapStreet street)
 {
     int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
     vec3 r, m, img[4];
-    vec2 v = envcap_sigma_footprint_rays(x, d, w, street.pos[i].xyz, street.planes[i].xyz, street.along, r, m, img);
+    vec2 v = envcap_sigma_footprint_rays(x, envcap_frame_dir(d, street.frame), w, street.pos[i].xyz, street.planes[i],
+                                         street.along, r, m, img);
     float zs = envcap_clamp_level(envcap_z_of_w(envcap_footprint_power((1.0 - ENVCAP_TAP_SHARE) * v.x), street.xk,
                                                street.nlevels), street.nlevels);
     float beta = sqrt(ENVCAP_TAP_SHARE) / ENVCAP_SPREAD;
@@ -180,7 +197,7 @@ vec3 envcap_sample_sigma(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, 
 #ifndef ENVCAP_MAX_LOBES
 #define ENVCAP_MAX_LOBES 3
 #endif
-vec3 envcap_shade_lafortune(ENVCAP_PROBES_SAMPLER probes, samplerCube sky, vec3 x, vec3 T, vec3 B, vec3 N,
+vec3 envcap_shade_lafortune(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, vec3 x, vec3 T, vec3 B, vec3 N,
                             vec3 v, vec3 rho_d, vec4 C[ENVCAP_MAX_LOBES], vec3 rho_s[ENVCAP_MAX_LOBES],
                             int nlobes, EnvcapStreet street)
 {

@@ -28,9 +28,13 @@ def test_compile_matrix_every_target_every_unit_and_the_docs_table(tmp_path):
 
 
 def _definitions(src: str) -> dict[str, str]:
-    """Function name -> the text up to the next definition (its body and comments)."""
+    """Function name -> the text up to the next definition (its body and comments); the bodies of
+    all overloads of a name (GLSL overloads: the vec3-planes forms call the vec4 ones)."""
     ms = list(_FUNCTION.finditer(src))
-    return {m.group(1): src[m.end(): ms[i + 1].start() if i + 1 < len(ms) else len(src)] for i, m in enumerate(ms)}
+    out: dict[str, str] = {}
+    for i, m in enumerate(ms):
+        out[m.group(1)] = out.get(m.group(1), "") + src[m.end(): ms[i + 1].start() if i + 1 < len(ms) else len(src)]
+    return out
 
 
 @pytest.mark.parametrize("unit", sorted(RUNTIME_UNITS))
