@@ -8,7 +8,10 @@ predictions, each removing one more source of error:
 
 * ``nearest``, ``planes_mip`` (the paper), ``planes_mip_footprint`` (traced footprint shift),
   ``planes_mip_aniso`` (its 2 taps), ``planes_mip_sigma`` (4 taps where the sigma rays land),
-  ``blend``: the runtime methods;
+  ``blend``, ``planes_mip_oblique`` (the oblique closed-form shift), ``fitted_planes_mip``,
+  ``fitted_planes_oblique`` (the oblique shift on the fitted planes) and ``depth_refine`` (the
+  fitted planes' hit checked against the probe's distance and refined where wrong, oblique
+  shift): the runtime methods;
 * ``exact_lobe``: the footprint shift with a perfect ladder: the nearest probe's level 0 filtered
   with the exact normalized cos^w' lobe around ``r`` for every direction (float64 sum over its
   texels; ``w'`` the traced footprint's power).  Minus ``planes_mip_footprint``: what the ladder
@@ -53,7 +56,11 @@ from envcap.runtime.sampling import composite
 from envcap.scene import load_scene
 from envcap.scene.segment import street_segment
 
-METHODS = ("nearest", "planes_mip", "planes_mip_footprint", "planes_mip_aniso", "planes_mip_sigma", "blend")
+METHODS = ("nearest", "planes_mip", "planes_mip_footprint", "planes_mip_aniso", "planes_mip_sigma", "blend",
+           "planes_mip_oblique", "fitted_planes_mip", "fitted_planes_oblique", "depth_refine")
+CHEAP = ("planes_mip", "planes_mip_footprint", "planes_mip_aniso", "blend", "planes_mip_oblique", "fitted_planes_mip",
+         "fitted_planes_oblique", "depth_refine")
+"""The runtime methods costing <= 3x a plain lookup (docs/runtime.md, "Cost"; all but ``planes_mip_sigma``)."""
 STAGES = METHODS + ("exact_lobe", "exact_lobe_taps8", "planes_then_filter", "depth_then_filter")
 
 
@@ -62,6 +69,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenes", default="canyon,crossing,asymmetric,avenue", help="bundled scenes, comma-separated")
     parser.add_argument("--positions", type=int, default=6, metavar="K", help="positions per street (default 6)")
     parser.add_argument("--powers", default="64,256", help="lobe powers (default 64,256)")
+    parser.add_argument("--stages", default=",".join(STAGES),
+                        help="stages to compute, comma-separated, 'nearest' among them (default: all; e.g. "
+                             "nearest,planes_mip_oblique,fitted_planes_mip,depth_refine for a short run)")
 
 
 def exact_lobe(level0: NDArray, r: NDArray, w: NDArray) -> NDArray[np.float64]:
@@ -86,6 +96,10 @@ def run(args: argparse.Namespace) -> int:
     powers = [float(v) for v in args.powers.split(",") if v.strip()]
     if args.positions < 1 or not powers or any(not (w > 0 and math.isfinite(w)) for w in powers):
         raise ValueError("--positions must be >= 1 and --powers positive finite numbers")
+    stages = tuple(s for s in STAGES if s in {v.strip() for v in args.stages.split(",")})
+    unknown = {v.strip() for v in args.stages.split(",") if v.strip()} - set(STAGES)
+    if unknown or "nearest" not in stages:
+        raise ValueError(f"--stages must name 'nearest' and stages of {', '.join(STAGES)}; unknown: {sorted(unknown)}")
     t0 = time.perf_counter()
     ctx = create_context()
     result: dict[str, Any] = {}
@@ -95,14 +109,14 @@ def run(args: argparse.Namespace) -> int:
             ps = bake_probe_set(scene, resolution=64, spacing=5.0, ctx=ctx, progress=False)
             truth = TruthRenderer(scene, 64, ctx)
             pred = Predictor(ps, sky=truth.sky, ctx=ctx)
-            errs: dict[str, dict[float, list[float]]] = {s: {w: [] for w in powers} for s in STAGES}
+            errs: dict[str, dict[float, list[float]]] = {s: {w: [] for w in powers} for s in stages}
             for ep in sample_positions(ps.manifest, Sweep(per_street=args.positions, seed=5)):
                 x = np.array(ep.position)
                 parts = truth.filtered(truth.capture(x).rgba, powers)
                 dfull = cubemod.texel_directions(64).reshape(-1, 3)
                 inf = np.full(dfull.shape[0], math.inf)
-                cubes = {"planes_then_filter": pred.street_rgba("planes", ep.street, x, dfull, inf),
-                         "depth_then_filter": pred.street_rgba("depth_reproject", ep.street, x, dfull, inf)}
+                cubes = {st: pred.street_rgba(meth, ep.street, x, dfull, inf) for st, meth in
+                         (("planes_then_filter", "planes"), ("depth_then_filter", "depth_reproject")) if st in stages}
                 local = pred.local_street(ep.street, x)
                 i = local.nearest(x)
                 level0 = pred.chains.levels[0][local.layers[i]]
@@ -112,12 +126,17 @@ def run(args: argparse.Namespace) -> int:
                     sky = truth.sky_at(w, False)
                     t = composite(parts[w]["street"], sky)
                     skyp = pred.sky_rgb(d, np.full(d.shape[0], w), sun=False)
-                    for meth in METHODS:
+                    for meth in (m for m in METHODS if m in stages):
                         p = pred.predict(meth, ep.street, x, d, np.full(d.shape[0], w), sun=False)
                         errs[meth][w].append(relative_rmse(p.reshape(t.shape), t))
+                    if "exact_lobe" not in stages and "exact_lobe_taps8" not in stages:
+                        continue
                     sf = sigma_footprint(x, d, w, local.positions[i], local.planes[i], local.along)
-                    p = composite(exact_lobe(level0, sf.r, sf.power()), skyp)
-                    errs["exact_lobe"][w].append(relative_rmse(p.reshape(t.shape), t))
+                    if "exact_lobe" in stages:
+                        p = composite(exact_lobe(level0, sf.r, sf.power()), skyp)
+                        errs["exact_lobe"][w].append(relative_rmse(p.reshape(t.shape), t))
+                    if "exact_lobe_taps8" not in stages:
+                        continue
                     v_tap = np.maximum(sf.var_minor, sf.var_major / 22.0)       # 8 taps: 1 + (8^2 - 1) / 3
                     spread = np.sqrt(np.maximum(sf.var_major - v_tap, 0.0))
                     acc = np.zeros((d.shape[0], 4))
@@ -125,6 +144,9 @@ def run(args: argparse.Namespace) -> int:
                         u = sf.r + (c * spread)[:, None] * sf.major
                         acc += exact_lobe(level0, u / np.linalg.norm(u, axis=1, keepdims=True), np.maximum(1 / v_tap - 3, 0))
                     errs["exact_lobe_taps8"][w].append(relative_rmse(composite(acc / 8, skyp).reshape(t.shape), t))
+                for w in powers:
+                    sky = truth.sky_at(w, False)
+                    t = composite(parts[w]["street"], sky)
                     for stage, rgba in cubes.items():
                         f = filter_truth(rgba.reshape(6, 64, 64, 4).astype(np.float32), w, ctx=ctx).astype(np.float64)
                         errs[stage][w].append(relative_rmse(composite(f, sky), t))
@@ -135,14 +157,16 @@ def run(args: argparse.Namespace) -> int:
     finally:
         ctx.release()
     doc = {"benchmark": "narrow", "powers": powers, "error": "mean rel. RMSE of luminance, sun out of the sky",
-           "stages": list(STAGES), "scenes": result, "total_s": time.perf_counter() - t0}
+           "stages": list(stages), "scenes": result, "total_s": time.perf_counter() - t0}
     with atomic_output_dir(args.out) as tmp:
         (Path(tmp) / "narrow.json").write_text(json.dumps(doc, indent=1) + "\n")
     for w in powers:
-        print(f"w = {w:g}: " + " | ".join(STAGES))
+        print(f"w = {w:g}: " + " | ".join(stages) + "   (then nearest / each)")
         for name, r in result.items():
-            e = [r[s][str(int(w))] for s in STAGES]
-            print(f"  {name:>11}: " + " ".join(f"{v:.3f}" for v in e) + f"   nearest/best runtime {e[0] / min(e[1:7]):.2f}, "
-                  f"nearest/planes_then_filter {e[0] / e[8]:.2f}, nearest/depth_then_filter {e[0] / e[9]:.2f}")
+            e = {s: r[s][str(int(w))] for s in stages}
+            cheap = [s for s in CHEAP if s in e]
+            best = f", best <= 3x: {min(cheap, key=lambda s: e[s])}" if cheap else ""
+            print(f"  {name:>11}: " + " ".join(f"{e[s]:.3f}" for s in stages) + "   "
+                  + " ".join(f"{e['nearest'] / e[s]:.2f}" for s in stages) + best)
     print(f"total {doc['total_s']:.1f} s; wrote {Path(args.out) / 'narrow.json'}")
     return 0
