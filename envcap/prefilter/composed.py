@@ -16,6 +16,7 @@ depend on the other probes of its batch (bit for bit).  Derivation and measured 
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
@@ -45,6 +46,9 @@ class _ComposedGL:
         self.source = shader_source("prefilter/prefilter_composed.glsl")
         self.progs: dict[tuple[bool, bool, int], Any] = {}
         self.om: dict[int, Any] = {}
+        self.seconds: dict[int, list[float]] | None = None   # level -> [wall s, CPU s] when timed
+        self.bufs: dict[str, Any] = {}
+        self.host = np.empty(0, np.float32)
 
     def program(self, direct: bool, taylor: bool, probes: int) -> Any:
         key = (direct, taylor, probes)
@@ -59,8 +63,25 @@ class _ComposedGL:
             self.om[n] = self.ctx.buffer(cube_geometry.texel_solid_angles(n)[0].astype(np.float32).tobytes())
         return self.om[n]
 
+    def scratch(self, name: str, nbytes: int) -> Any:
+        """GL buffer ``name`` of at least ``nbytes``, kept for the whole call: every batch reuses it
+        (fresh memory costs its page faults each time: ~1.4 ms of CPU per MB on this machine)."""
+        b = self.bufs.get(name)
+        if b is None or b.size < nbytes:
+            if b is not None:
+                b.release()
+            b = self.bufs[name] = self.ctx.buffer(reserve=nbytes)
+        return b
+
+    def host_array(self, shape: tuple[int, ...]) -> NDArray[np.float32]:
+        """A float32 array of ``shape`` on memory kept for the whole call (as :meth:`scratch`)."""
+        size = math.prod(shape)
+        if self.host.size < size:
+            self.host = np.empty(size, np.float32)
+        return self.host[:size].reshape(shape)
+
     def release(self) -> None:
-        for b in self.om.values():
+        for b in [*self.om.values(), *self.bufs.values()]:
             b.release()
         for pr in self.progs.values():
             pr.release()
@@ -68,9 +89,9 @@ class _ComposedGL:
 
 def _run_level(gl: _ComposedGL, src: Any, src_nu: Any, n_src: int, hot: tuple[Any, Any, Any], p: int, n_out: int,
                step: LevelStep, w_level: float) -> tuple[Any, Any, Any]:
-    """One dispatch; returns the (cold, nu, total) buffers of the level (the caller releases them):
-    cold ``(6, n_out, n_out, p)`` vec4 (as ``src``), total ``(p, 6, n_out, n_out)`` vec4, nu
-    ``(6, n_out, n_out)`` float."""
+    """One dispatch; returns the (cold, nu, total) buffers of the level (``gl``'s scratch buffers, at
+    least): cold ``(6, n_out, n_out, p)`` vec4 (as ``src``), total ``(p, 6, n_out, n_out)`` vec4 (one
+    buffer for every level: read it before the next), nu ``(6, n_out, n_out)`` float."""
     ctx = gl.ctx
     group = min(p, PROBES_PER_INVOCATION)
     count = -(-p // group) * 6 * n_out * n_out
@@ -82,7 +103,8 @@ def _run_level(gl: _ComposedGL, src: Any, src_nu: Any, n_src: int, hot: tuple[An
     taylor = step.taylor
     offset = min(4.0 * wp / (n_src * n_src), 60.0)
     texels = p * 6 * n_out * n_out
-    cold, nu, total = ctx.buffer(reserve=texels * 16), ctx.buffer(reserve=6 * n_out * n_out * 4), ctx.buffer(reserve=texels * 16)
+    cold, nu = gl.scratch(f"cold{step.level}", texels * 16), gl.scratch(f"nu{step.level}", 6 * n_out * n_out * 4)
+    total = gl.scratch("total", texels * 16)
     for b, buf in enumerate((src, src_nu, gl.omega(n_src), *hot, cold, nu, total)):
         buf.bind_to_storage_buffer(b)
     pr = gl.program(step.source == 0, taylor, group)
@@ -132,8 +154,9 @@ def _nearest_fill(out: NDArray[np.float32], level0: NDArray[np.float64], cold0: 
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
     out[pi, f, r, c] = 0.0
     out[pi, f, r, c, :cc] = _nearest_average(level0, pi, d)
-    cold_a = np.frombuffer(cold.read(), np.float32).reshape(out.shape[1:4] + (out.shape[0], 4)).copy()
-    nu_a = np.frombuffer(nu.read(), np.float32).reshape(out.shape[1:-1]).copy()
+    cold_a = np.frombuffer(cold.read(size=out.size * 4), np.float32).reshape(out.shape[1:4] + (out.shape[0], 4)).copy()
+    nu_a = np.frombuffer(nu.read(size=int(np.prod(out.shape[1:-1])) * 4),
+                         np.float32).reshape(out.shape[1:-1]).copy()
     cold_a[f, r, c, pi] = _nearest_average(cold0, pi, d)
     nu_a[bad.any(axis=0)] = 1.0
     cold.write(cold_a.tobytes())
@@ -144,17 +167,17 @@ def _nearest_fill(out: NDArray[np.float32], level0: NDArray[np.float64], cold0: 
 class _HotTexels:
     """The hot texels of a batch ``(P, 6, N, N, C)`` float64, as the shader reads them.
 
-    ``probe``, ``index``: probe and flat texel index of each; ``dirs`` ``(H + 1, 4)`` float32 unit
+    ``batch`` float32 or float64.  ``probe``, ``index``: probe and flat texel index of each; ``dirs`` ``(H + 1, 4)`` float32 unit
     directions (one padding row); ``ranges`` ``(P, 2)`` int32 first hot texel and count per probe;
     ``values`` ``(H, C)`` float64 ``Omega * L`` of the luminance channels (RGB; every channel when
     ``C < 3``) and 0 in the others (alpha stays in the source, so a constant alpha stays constant);
     ``lum``: the number of luminance channels.
     """
 
-    def __init__(self, batch: NDArray[np.float64]) -> None:
+    def __init__(self, batch: NDArray[np.floating]) -> None:
         p, _, n, _, nch = batch.shape
-        y = luminance_weight(batch)
-        per_probe = [hot_texels(y[i])[0] for i in range(p)]
+        # per probe, in float64 (the values of a float32 batch exactly): no float64 copy of the batch
+        per_probe = [hot_texels(luminance_weight(np.asarray(batch[i], np.float64)))[0] for i in range(p)]
         self.index = np.concatenate(per_probe)
         self.probe = np.repeat(np.arange(p), [h.size for h in per_probe])
         face, rem = np.divmod(self.index, n * n)
@@ -165,61 +188,90 @@ class _HotTexels:
         counts = np.array([h.size for h in per_probe], np.int32)
         self.ranges = np.stack([np.concatenate([[0], np.cumsum(counts)[:-1]]), counts], 1).astype(np.int32)
         self.lum = 3 if nch >= 3 else nch
-        self.values = batch.reshape(p, -1, nch)[self.probe, self.index] * cube_geometry.texel_solid_angle(row, col, n)[:, None]
+        self.values = (batch.reshape(p, -1, nch)[self.probe, self.index].astype(np.float64)
+                       * cube_geometry.texel_solid_angle(row, col, n)[:, None])
         self.values[:, self.lum:] = 0.0
 
 
-def _filter_block(gl: _ComposedGL, batch: NDArray[np.float64], hot: _HotTexels, c0: int, ladder: LobeLadder,
+def _filter_block(gl: _ComposedGL, batch: NDArray[np.floating], hot: _HotTexels, c0: int, ladder: LobeLadder,
                   steps: list[LevelStep], ones: Any, out: list[NDArray[np.float32]], b0: int) -> None:
     """Filter channels ``c0 .. c0 + 3`` of ``batch`` into ``out[k][b0:b0 + P]`` for every step."""
     ctx = gl.ctx
-    p, nch = batch.shape[0], batch.shape[-1]
+    p, _, n, _, nch = batch.shape
     cc = min(4, nch - c0)
-    blk = np.zeros(batch.shape[:-1] + (4,), np.float32)
-    blk[..., :cc] = batch[..., c0:c0 + cc]
-    blk.reshape(p, -1, 4)[hot.probe, hot.index, :max(0, min(4, hot.lum - c0))] = 0.0   # the hot texels leave the source
+    # the source holds the probes of a texel next to each other: (6, N, N, P, 4), made in one copy
+    src = gl.host_array((6, n, n, p, 4))
+    src[..., :cc] = np.moveaxis(batch[..., c0:c0 + cc], 0, 3)
+    src[..., cc:] = 0.0
+    face, rem = np.divmod(hot.index, n * n)
+    src[face, rem // n, rem % n, hot.probe, :max(0, min(4, hot.lum - c0))] = 0.0   # the hot texels leave the source
     hot_s = np.zeros((hot.index.size + 1, 4), np.float32)
     hot_s[:-1, :cc] = hot.values[:, c0:c0 + cc]
-    hot_bufs = (ctx.buffer(hot_s.tobytes()), ctx.buffer(hot.dirs.tobytes()), ctx.buffer(hot.ranges.tobytes()))
-    # sources hold the probes of a texel next to each other: (6, N, N, P, 4)
-    levels: dict[int, tuple[Any, Any]] = {0: (ctx.buffer(np.ascontiguousarray(np.moveaxis(blk, 0, 3)).tobytes()), ones)}
+    hot_bufs = (ctx.buffer(hot_s), ctx.buffer(hot.dirs), ctx.buffer(hot.ranges))
+    src_gl = gl.scratch("src", src.nbytes)
+    src_gl.write(src)
+    levels: dict[int, tuple[Any, Any]] = {0: (src_gl, ones)}
     try:
         for step in steps:
             k, m = step.level, ladder.sizes[step.level]
-            src, src_nu = levels[step.source]
-            cold, nu, total = _run_level(gl, src, src_nu, ladder.sizes[step.source], hot_bufs, p, m, step,
+            src_buf, src_nu = levels[step.source]
+            if gl.seconds is not None:
+                ctx.finish()
+                t0, cpu0 = time.perf_counter(), time.process_time()
+            cold, nu, total = _run_level(gl, src_buf, src_nu, ladder.sizes[step.source], hot_bufs, p, m, step,
                                          float(ladder.powers[k]))
+            if gl.seconds is not None:
+                ctx.finish()
+                acc = gl.seconds.setdefault(k, [0.0, 0.0])
+                acc[0] += time.perf_counter() - t0
+                acc[1] += time.process_time() - cpu0
             levels[k] = (cold, nu)
-            res = np.frombuffer(total.read(), np.float32).reshape(p, 6, m, m, 4)
-            total.release()
+            dest = out[k][b0:b0 + p]
+            if cc == 4 == nch and dest.flags.c_contiguous:
+                total.read_into(dest, size=dest.nbytes)   # straight into the chain: no copy
+                res = dest
+            else:
+                res = np.frombuffer(total.read(size=p * 6 * m * m * 16), np.float32).reshape(p, 6, m, m, 4)
             if step.source == 0 and not np.isfinite(res).all():
-                res = _nearest_fill(res, batch[..., c0:c0 + cc], blk, cold, nu)
-            out[k][b0:b0 + p, ..., c0:c0 + cc] = res[..., :cc]
+                res = _nearest_fill(res, batch[..., c0:c0 + cc], np.moveaxis(src, 3, 0), cold, nu)
+            if res is not dest:
+                dest[..., c0:c0 + cc] = res[..., :cc]
     finally:
-        for j, (cold, nu) in levels.items():
-            cold.release()
-            if j:
-                nu.release()
         for buf in hot_bufs:
             buf.release()
 
 
-def prefilter_many_composed(a: NDArray[np.float64], ladder: LobeLadder, ctx: Any, progress: bool | None = None,
-                            batch_bytes: int = 64 << 20, plan: list[LevelStep] | None = None) -> list[NDArray[np.float32]]:
-    """The composed chain of ``P`` checked cubes ``a`` ``(P, 6, N, N, C)`` float64 on ``ctx``.
+def prefilter_many_composed(a: NDArray[np.floating], ladder: LobeLadder, ctx: Any, progress: bool | None = None,
+                            batch_bytes: int = 64 << 20, plan: list[LevelStep] | None = None,
+                            out: list[NDArray[np.float32]] | None = None,
+                            level_seconds: dict[int, list[float]] | None = None) -> list[NDArray[np.float32]]:
+    """The composed chain of ``P`` checked cubes ``a`` ``(P, 6, N, N, C)`` (finite float32 or
+    float64; the same result for a float32 array and its float64 copy) on ``ctx``.
 
     Returns ``[(P, 6, N_k, N_k, C)]`` float32 (level 0 = the input).  Probes are filtered in
     batches whose level-0 source (float32 RGBA) fits ``batch_bytes``.  ``plan`` overrides
-    :func:`~envcap.prefilter.composition.composition_plan` (tests force passes with it).  Called by
-    :func:`envcap.prefilter.fast.prefilter_many` for ``quality="composed"``.
+    :func:`~envcap.prefilter.composition.composition_plan` (tests force passes with it).  ``out``:
+    the arrays to fill and return instead of new ones (float32, those shapes; ``out[0]`` may be
+    ``a`` itself, then it is not copied).  ``level_seconds``: when given, each level ``k``'s dispatches
+    add ``[wall s, CPU s]`` (``time.process_time``: llvmpipe's threads too) under ``k``, the GL
+    queue finished before and after each (``envcap bench bake``).  Called by :func:`envcap.prefilter.fast.prefilter_many`
+    for ``quality="composed"``.
     """
     p_all, _, n, _, nch = a.shape
     steps = composition_plan(ladder) if plan is None else plan
-    chain = [np.empty((p_all, 6, s, s, nch), np.float32) for s in ladder.sizes]
-    chain[0][:] = a
+    shapes = [(p_all, 6, s, s, nch) for s in ladder.sizes]
+    if out is None:
+        chain = [np.empty(sh, np.float32) for sh in shapes]
+    else:
+        chain = list(out)
+        if [x.shape for x in chain] != shapes or any(x.dtype != np.float32 for x in chain):
+            raise ValueError(f"out must be float32 arrays of shapes {shapes}")
+    if chain[0] is not a:
+        chain[0][:] = a
     if ladder.levels == 1:
         return chain
     gl = _ComposedGL(ctx)
+    gl.seconds = level_seconds
     per = max(1, int(batch_bytes // (6 * n * n * 16)))
     ones = ctx.buffer(reserve=4)  # nu of level 0: never read (direct passes)
     try:

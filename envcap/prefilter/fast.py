@@ -167,14 +167,16 @@ and ``"composed"`` (:mod:`envcap.prefilter.composed`)."""
 
 def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: Quality = "default",
                    ctx: Any = None, progress: bool | None = None,
-                   batch_bytes: int = 64 << 20) -> list[NDArray[np.float32]]:
+                   batch_bytes: int = 64 << 20, out: list[NDArray[np.float32]] | None = None) -> list[NDArray[np.float32]]:
     """Filter ``P`` cubes ``(P, 6, N, N, C)`` into cosine-lobe chains: a list of ``(P, 6, N_k, N_k, C)``.
 
     Same result as :func:`prefilter_chain` on each cube (one GL dispatch per level and channel
     block for a batch of probes whose source buffers fit ``batch_bytes``), the form a probe-set
     bake wants: level ``k`` of all probes is one array, ready for a cube-map array.
     ``quality="composed"`` filters each level from an earlier one with the difference lobe
-    (:func:`envcap.prefilter.composed.prefilter_many_composed`).
+    (:func:`envcap.prefilter.composed.prefilter_many_composed`); it reads float32 cubes as they
+    are (no float64 copy; the same result as their float64 copy).  ``out``: float32 arrays of
+    those shapes to fill and return (``out[0]`` may be ``cubes`` itself: then it is not copied).
     """
     a = np.asarray(cubes)
     if a.ndim != 5:
@@ -183,8 +185,13 @@ def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: 
         raise ValueError("cubes must hold at least one cube (P >= 1)")
     if a.shape[1] != 6 or a.shape[2] != a.shape[3] or a.shape[2] < 1 or a.shape[4] < 1:
         raise ValueError(f"cubes must have shape (P, 6, N, N, C), got {a.shape}")
-    a = np.stack([check_finite_cube(c, f"cube {i}") for i, c in enumerate(a)]) if a.shape[0] > 1 \
-        else check_finite_cube(a[0])[None]
+    if quality == "composed" and a.dtype in (np.float32, np.float64):
+        if not all(np.isfinite(c).all() for c in a):   # (per cube: a small temporary) name the first bad cube
+            for i, c in enumerate(a):
+                check_finite_cube(c, f"cube {i}" if a.shape[0] > 1 else "cube")
+    else:
+        a = np.stack([check_finite_cube(c, f"cube {i}") for i, c in enumerate(a)]) if a.shape[0] > 1 \
+            else check_finite_cube(a[0])[None]
     p_all, _, n, _, nch = a.shape
     if ladder is None:
         ladder = lobe_ladder(n)
@@ -197,13 +204,16 @@ def prefilter_many(cubes: ArrayLike, ladder: LobeLadder | None = None, quality: 
         if own:
             ctx = create_context()
         try:
-            return prefilter_many_composed(a, ladder, ctx, progress, batch_bytes)
+            return prefilter_many_composed(a, ladder, ctx, progress, batch_bytes, out=out)
         finally:
             if own:
                 ctx.release()
     q, eps0, min_src = QUALITY[quality]
-    chain = [np.empty((p_all, 6, s, s, nch), np.float32) for s in ladder.sizes]
-    chain[0][:] = a
+    chain = [np.empty((p_all, 6, s, s, nch), np.float32) for s in ladder.sizes] if out is None else list(out)
+    if [x.shape for x in chain] != [(p_all, 6, s, s, nch) for s in ladder.sizes] or any(x.dtype != np.float32 for x in chain):
+        raise ValueError(f"out must be float32 arrays of the chain's shapes {[(p_all, 6, s, s, nch) for s in ladder.sizes]}")
+    if chain[0] is not cubes:
+        chain[0][:] = a
     if ladder.levels == 1:
         return chain
     own = ctx is None

@@ -15,6 +15,7 @@ from envcap.core.color import luminance
 from envcap.core.lobes import LobeLadder, lobe_ladder
 from envcap.prefilter import composition_plan, convolve_exact, convolve_exact_dirs, prefilter_chain, prefilter_many
 from envcap.prefilter.composed import prefilter_many_composed
+from envcap.prefilter.hot import hot_texels, luminance_weight
 from envcap.prefilter.composition import (COMPOSED_EPS, LevelStep, mean_cosine, power_of_mean_cosine,
                                           truncated_power)
 
@@ -201,3 +202,24 @@ def test_tiny_faces(gl_ctx, n):
     assert [c.shape for c in chain] == [(6, s, s, 3) for s in lad.sizes]
     for k in range(1, lad.levels):
         np.testing.assert_allclose(chain[k], convolve_exact(cube, lad.powers[k], lad.sizes[k]), rtol=1e-5)
+
+
+def test_float32_input_and_out_arrays_give_the_float64_chain_bit_for_bit(gl_ctx, inputs):
+    # the bake hands its float32 capture over as it is and lets the filter write its levels in place
+    # (level 0 the capture itself); the chain must equal that of the float64 copy, sun included
+    cubes32 = np.stack([inputs[32]["street"], inputs[32]["sky_sun"]]).astype(np.float32)
+    cubes64 = cubes32.astype(np.float64)
+    assert hot_texels(luminance_weight(cubes64[1]))[0].size > 0   # the sun's exact path runs
+    lad = lobe_ladder(32)
+    ref = prefilter_many(cubes64, lad, quality="composed", ctx=gl_ctx)
+    out = [cubes32] + [np.full((2, 6, s, s, 4), np.nan, np.float32) for s in lad.sizes[1:]]
+    got = prefilter_many(cubes32, lad, quality="composed", ctx=gl_ctx, out=out)
+    assert got[0] is cubes32 and all(g is o for g, o in zip(got, out))
+    for k in range(lad.levels):
+        assert np.array_equal(got[k], ref[k]), k
+    bad = cubes32.copy()
+    bad[1, 2, 3, 4, 0] = np.inf
+    with pytest.raises(ValueError, match="cube 1 has 1 texel"):
+        prefilter_many(bad, lad, quality="composed", ctx=gl_ctx)
+    with pytest.raises(ValueError, match="out must be float32"):
+        prefilter_many(cubes32, lad, quality="composed", ctx=gl_ctx, out=out[:-1])
