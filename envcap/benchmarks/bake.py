@@ -19,6 +19,12 @@ level against the exact float64 reference (:func:`envcap.prefilter.convolve_exac
 the exact method's time on those texels, scaled to the whole set, gives the ratio against it.
 cmft is not built here: its time enters only as a conversion through the known point
 ``--cmft-seconds`` (one 256^2 cube in and out, 9 levels, 2 threads, ``../shared/PLATFORM.md``).
+
+``floor`` (per size, unless ``--floor-filter-probes 0``): what a bake of those probes cannot do
+without, each part timed alone, per probe: the capture (the scene's effects, fresh output arrays
+as in the bake; render and readback), the capture without shading (``geometry_only``), and the
+composed filter per level on ``--floor-filter-probes`` captured probes; beside the budget of
+:data:`GOAL_PROBES_PER_S` on this machine's cores (wall and CPU ms per probe).
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from envcap.capture.renderer import CubeCapture
 from envcap.core import cube as cm
 from envcap.core.color import luminance
 from envcap.core.lobes import lobe_ladder
@@ -41,10 +48,12 @@ from envcap.formats.registry import default_writer_names
 from envcap.gpu.context import create_context
 from envcap.outputs import atomic_output_dir
 from envcap.prefilter import QUALITIES, convolve_exact_dirs
+from envcap.prefilter.composed import prefilter_many_composed
 from envcap.probeset.bake import bake_probe_set
 from envcap.probeset.bake_output import bake_to_directory
 from envcap.probeset.probe_set import ProbeSet
 from envcap.probeset.progress import BakeProgress
+from envcap.probeset.shadow_fit import shadow_effect_parameters
 from envcap.probeset.store import fill_probe_set_dir
 from envcap.scene import load_scene
 
@@ -61,6 +70,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-files-run", action="store_true", help="skip the fast path with --exr --previews")
     p.add_argument("--error-probes", type=int, default=2, help="probes whose levels are checked against exact (default 2)")
     p.add_argument("--samples", type=int, default=64, help="texels per level checked against exact (default 64)")
+    p.add_argument("--floor-filter-probes", type=int, default=8,
+                   help="probes of the set filtered alone for the per-level floor (default 8; 0: no floor)")
     p.add_argument("--cmft-seconds", type=float, default=4.8,
                    help="cmft's wall time for one 256^2 cube, 9 levels, 2 threads, on this machine (default 4.8, "
                         "PLATFORM.md); used only to convert")
@@ -162,6 +173,71 @@ def _gil_probe(ps: ProbeSet, tmp: Path, reps: int = 3) -> dict[str, Any]:
     return out
 
 
+GOAL_PROBES_PER_S = 10.0
+"""Issue 11's goal: probes per second end to end at 6 x 256^2 on this machine's cores."""
+
+
+def _timed(fn: Any) -> tuple[Any, float, float]:
+    t, c = time.perf_counter(), time.process_time()
+    out = fn()
+    return out, time.perf_counter() - t, time.process_time() - c
+
+
+def _floor(scene_name: str, ps: ProbeSet, size: int, ctx: Any, filter_probes: int) -> dict[str, Any]:
+    """The least a bake of ``ps``'s probes must do here, per probe: the capture alone (the scene's
+    effects and shadow map, fresh output arrays as in the bake), the same without shading
+    (``geometry_only``: no effects), and the composed filter per level on ``filter_probes`` of the
+    captured probes (each level's dispatches timed alone, the rest of the call as ``outside``);
+    with the budget of :data:`GOAL_PROBES_PER_S` on this machine's cores."""
+    scene = load_scene(scene_name)
+    sky = scene.sky.build()
+    pos = np.array([p.position for st in ps.manifest.streets for p in st.probes], np.float64)
+    count = len(pos)
+    rec: dict[str, Any] = {"probes": count}
+    rgba = None
+    for name in ("capture", "geometry_only"):
+        if name == "capture":
+            cap, setup_s, setup_cpu = _timed(lambda: CubeCapture.from_scene(
+                scene, size, sky=sky, ctx=ctx, effect_parameters=shadow_effect_parameters(scene)))
+        else:
+            cap, setup_s, setup_cpu = _timed(lambda: CubeCapture(scene.mesh, size, ctx=ctx))
+        try:
+            cap.capture_many(pos[:1], progress=False)   # compiles, warms
+            cs, wall, cpu = _timed(lambda: cap.capture_many(pos, progress=False))
+        finally:
+            cap.release()
+        t = cs.pass_times_s
+        rec[name] = {"setup_s": round(setup_s, 4), "setup_cpu_s": round(setup_cpu, 4),
+                     "ms_per_probe": round(1e3 * wall / count, 2), "cpu_ms_per_probe": round(1e3 * cpu / count, 2),
+                     "render_ms_per_probe": round(1e3 * t.get("render", 0.0) / count, 2),
+                     "readback_ms_per_probe": round(1e3 * t.get("readback", 0.0) / count, 2),
+                     "set_passes_s": {k: round(v, 4) for k, v in t.items() if k not in ("render", "readback")},
+                     "probes_per_s": round(count / wall, 2), "probes_per_cpu_s": round(count / cpu, 2)}
+        if name == "capture":
+            rgba = np.ascontiguousarray(cs.rgba[:max(1, filter_probes)])
+        del cs
+    assert rgba is not None
+    lad = lobe_ladder(size)
+    prefilter_many_composed(rgba[:1], lad, ctx)   # compiles the variants
+    sec: dict[int, list[float]] = {}
+    _, wall, cpu = _timed(lambda: prefilter_many_composed(rgba, lad, ctx, level_seconds=sec))
+    k = len(rgba)
+    rec["prefilter"] = {
+        "probes": k, "ms_per_probe": round(1e3 * wall / k, 2), "cpu_ms_per_probe": round(1e3 * cpu / k, 2),
+        "levels": {str(lv): {"ms_per_probe": round(1e3 * v[0] / k, 2), "cpu_ms_per_probe": round(1e3 * v[1] / k, 2)}
+                   for lv, v in sorted(sec.items())},
+        "outside_dispatches_cpu_ms_per_probe": round(1e3 * (cpu - sum(v[1] for v in sec.values())) / k, 2)}
+    cores = os.cpu_count() or 1
+    rec["goal"] = {"probes_per_s": GOAL_PROBES_PER_S, "cores": cores, "wall_ms_per_probe": 1e3 / GOAL_PROBES_PER_S,
+                   "cpu_ms_per_probe_all_cores_busy": 1e3 * cores / GOAL_PROBES_PER_S,
+                   "capture_alone_share_of_wall_budget": round(rec["capture"]["ms_per_probe"] * GOAL_PROBES_PER_S / 1e3, 3),
+                   "capture_and_filter_cpu_share_of_cpu_budget": round(
+                       (rec["capture"]["cpu_ms_per_probe"] + rec["prefilter"]["cpu_ms_per_probe"]) * GOAL_PROBES_PER_S
+                       / (1e3 * cores), 3)}
+    return rec
+
+
+
 def _run_size(scene_name: str, size: int, args: argparse.Namespace, tmp: Path, ctx: Any,
               rng: np.random.Generator) -> dict[str, Any]:
     scene = load_scene(scene_name)
@@ -197,6 +273,8 @@ def _run_size(scene_name: str, size: int, args: argparse.Namespace, tmp: Path, c
         rec["prefilter_ratio"]["cmft_converted_over_fast_wall"] = args.cmft_seconds * (layers + 1) / pre["after"]["seconds"]
         rec["prefilter_ratio"]["cmft_converted_over_fast_cpu"] = 2 * args.cmft_seconds * (layers + 1) / pre["after"]["cpu_seconds"]
         rec["prefilter_ratio"]["cmft_converted_over_previous_cpu"] = 2 * args.cmft_seconds * (layers + 1) / pre["before"]["cpu_seconds"]
+    if args.floor_filter_probes > 0:
+        rec["floor"] = _floor(scene_name, runs["after"][0], size, ctx, args.floor_filter_probes)
     rec["load_average_end"] = list(os.getloadavg())
     return rec
 
@@ -222,6 +300,25 @@ def _table(result: dict[str, Any]) -> str:
         for w, g in rec.get("gil", {}).items():
             lines.append(f"| {rec['size']} | {w} | {g['files']} | {g['writer_thread_cpu_s']} | "
                          f"{g['spinning_thread_cpu_s']} | {g['wall_s']} |")
+    lines += ["", "| size | floor (per probe, alone) | wall ms | CPU ms | render ms | readback ms | probes/s |",
+              "| --- | --- | --- | --- | --- | --- | --- |"]
+    for rec in result["sizes"]:
+        fl = rec.get("floor")
+        if fl is None:
+            continue
+        for what in ("capture", "geometry_only"):
+            f = fl[what]
+            lines.append(f"| {rec['size']} | {what} ({fl['probes']} probes) | {f['ms_per_probe']} | {f['cpu_ms_per_probe']} | "
+                         f"{f['render_ms_per_probe']} | {f['readback_ms_per_probe']} | {f['probes_per_s']} |")
+        pf = fl["prefilter"]
+        lines.append(f"| {rec['size']} | composed filter ({pf['probes']} probes) | {pf['ms_per_probe']} | {pf['cpu_ms_per_probe']} "
+                     f"| levels: " + ", ".join(f"{k}: {v['cpu_ms_per_probe']}" for k, v in pf["levels"].items())
+                     + f"; outside the dispatches {pf['outside_dispatches_cpu_ms_per_probe']} (CPU ms) | | |")
+        g = fl["goal"]
+        lines.append(f"| {rec['size']} | goal {g['probes_per_s']:g} probes/s on {g['cores']} cores | {g['wall_ms_per_probe']:g} "
+                     f"| {g['cpu_ms_per_probe_all_cores_busy']:g} | capture alone: {g['capture_alone_share_of_wall_budget']} "
+                     f"of the wall budget | capture + filter: {g['capture_and_filter_cpu_share_of_cpu_budget']} of the CPU "
+                     f"budget | |")
     lines += ["", "| size | ratio | value |", "| --- | --- | --- |"]
     for rec in result["sizes"]:
         for k, v in rec["prefilter_ratio"].items():

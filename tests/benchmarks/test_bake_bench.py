@@ -25,3 +25,15 @@ def test_bench_bake_reports_runs_stages_and_errors(tmp_path):
         assert len(errors) == 2 and max(errors) < 5e-3
     assert (tmp_path / "b" / "after_files_4" / "exr").is_dir() and not (tmp_path / "b" / "after_4" / "exr").exists()
     assert "| 6x4^2" in (tmp_path / "b" / "bake.md").read_text()
+    # the floor: the capture alone and without shading over the set's probes, the filter per level
+    fl = rec["floor"]
+    assert fl["probes"] == rec["probes"]
+    for what in ("capture", "geometry_only"):
+        assert fl[what]["ms_per_probe"] > 0 and fl[what]["render_ms_per_probe"] <= fl[what]["ms_per_probe"]
+    assert "shadow_map" in fl["capture"]["set_passes_s"] and not fl["geometry_only"]["set_passes_s"]
+    pf = fl["prefilter"]
+    assert set(pf["levels"]) == {"1", "2"} and pf["probes"] == min(8, rec["probes"])
+    assert sum(v["cpu_ms_per_probe"] for v in pf["levels"].values()) <= pf["cpu_ms_per_probe"] + 0.02
+    g = fl["goal"]
+    assert abs(g["capture_alone_share_of_wall_budget"] - fl["capture"]["ms_per_probe"] * 10 / 1000) < 1e-3
+    assert "| 4 | capture (" in (tmp_path / "b" / "bake.md").read_text()
