@@ -114,9 +114,11 @@ class StreetExtent:
         return world_to_frame(x, self.yaw_deg, self.origin_xz)
 
     def ground_at(self, s: float) -> float:
-        """Ground height (m) at along coordinate ``s``: the nearest probe's tilted ground where the
-        probes' grounds slope, else the street's nominal ground (today's positions)."""
-        if self.probe_ground is None or self.probe_slope is None or not np.any(self.probe_slope):
+        """Ground height (m) at along coordinate ``s``: the nearest probe's (tilted) ground where the
+        probes' grounds slope or differ from the street's (a street that follows the terrain, flat
+        or not), else the street's nominal ground (today's positions)."""
+        if (self.probe_ground is None or self.probe_slope is None
+                or not (np.any(self.probe_slope) or np.any(self.probe_ground != self.ground))):
             return self.ground
         i = int(np.argmin(np.abs(self.probe_s - s)))
         return float(self.probe_ground[i] + self.probe_slope[i] * (s - self.probe_s[i]))

@@ -24,6 +24,7 @@ from envcap.core.latlong import cube_texel_average
 from envcap.core.street_frame import from_frame, to_frame
 from envcap.core.lobes import LobeLadder, texel_power
 from envcap.prefilter import convolve_exact, convolve_exact_dirs, omega_box_pyramid, prefilter_chain
+from envcap.probeset.shadow_fit import shadow_effect_parameters
 from envcap.runtime.sampling import composite
 
 TRUTH_TEXELS_PER_SIGMA = 3.0
@@ -118,7 +119,9 @@ class TruthRenderer:
         self.sky_rgba = {True: with_alpha(self.sky.cube(self.n)), False: with_alpha(self.sky.cube(self.n, include_sun=False))}
         self._sky_cache: dict[tuple[float, bool, float], NDArray] = {}
         self._sky_turned: dict[tuple[bool, float], NDArray[np.float32]] = {}
-        self.cap = CubeCapture.from_scene(scene, self.n, sky=self.sky, ctx=ctx)
+        # the sun shadows of the bake (the scene's [shadows]: fit, texel, cascades), not the default map
+        self.cap = CubeCapture.from_scene(scene, self.n, sky=self.sky, ctx=ctx,
+                                          effect_parameters=shadow_effect_parameters(scene))
         self.times = {"capture_s": 0.0, "filter_s": 0.0}
 
     def release(self) -> None:
