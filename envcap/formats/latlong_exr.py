@@ -21,18 +21,22 @@ from envcap.core import cube_sampling
 from envcap.core.checks import positive_int
 from envcap.core.cube import check_cube
 from envcap.core.latlong import latlong_directions
+from envcap.core.street_frame import to_frame
 from envcap.outputs import atomic_output_file
 
 HALF_MAX = 65504.0
 
 
-def cube_to_latlong_seamless(cube: NDArray, height: int | None = None) -> NDArray[np.float32]:
+def cube_to_latlong_seamless(cube: NDArray, height: int | None = None, yaw_deg: float = 0.0) -> NDArray[np.float32]:
     """The lat-long map ``(H, 2H, C)`` of cube ``(6, N, N, C)`` by seamless bilinear lookups at
     the pixel centers; ``height`` defaults to ``2 N`` (about the cube's texel density at the
-    equator)."""
+    equator).  ``yaw_deg``: the cube's faces lie along the frame of a street at that angle
+    (:mod:`envcap.core.street_frame`, a probe of a street at an angle); the map is in the world's
+    orientation all the same (pixel direction ``d`` looks the cube up at ``R d``)."""
     c = check_cube(cube)
     h = positive_int(2 * c.shape[1] if height is None else height, "lat-long height")
-    return cube_sampling.sample_cube([np.asarray(c, np.float64)], latlong_directions(h, 2 * h)).astype(np.float32)
+    d = latlong_directions(h, 2 * h)
+    return cube_sampling.sample_cube([np.asarray(c, np.float64)], to_frame(d, yaw_deg) if yaw_deg else d).astype(np.float32)
 
 
 def write_latlong_exr(path: str | os.PathLike[str], image: NDArray, *, half: bool | None = None) -> Path:

@@ -4,7 +4,8 @@ for tools that take only lat-long environment maps (``docs/engines.md``).
 * ``latlong/sky.exr``: the sky, RGB;
 * ``latlong/probe_NNN.exr``: what probe ``NNN`` sees, RGB = street + (1 - alpha) sky (the
   premultiplied street composited over the sky, as the runtime does), so each file is a
-  complete environment map.
+  complete environment map; in the world's orientation, also for a probe of a street at an angle
+  (whose cube has its faces along the street's frame).
 
 Both ``2N x 4N`` pixels for ``N``-texel faces, OpenEXR's LatLong orientation
 (:mod:`envcap.formats.latlong_exr`); half floats when every value fits, else float32 (a sun
@@ -32,8 +33,9 @@ def write_latlong_maps(out_dir: Path, ps: ProbeSet) -> FileEntries:
     sky = cube_to_latlong_seamless(np.asarray(ps.sky_levels[0])[..., :3])
     write_latlong_exr(out_dir / "latlong" / "sky.exr", sky)
     names = []
+    yaws = {p.layer: st.frame_yaw_deg for st in ps.manifest.streets for p in st.probes}   # a probe's cube axes
     for i in range(ps.layer_count):
-        street = cube_to_latlong_seamless(np.asarray(ps.levels[0][i]))
+        street = cube_to_latlong_seamless(np.asarray(ps.levels[0][i]), yaw_deg=yaws.get(i, 0.0))
         rgb = street[..., :3] + (1.0 - np.clip(street[..., 3:4], 0.0, 1.0)) * sky
         name = f"latlong/probe_{i:03d}.exr"
         write_latlong_exr(out_dir / name, rgb)
