@@ -29,6 +29,7 @@ import numpy as np
 from envcap.benchmarks.dynamic_street_avatars import avatar_section, write_avatar_files
 from envcap.benchmarks.dynamic_street_cost import gl_cost, numpy_cost
 from envcap.benchmarks.dynamic_street_plot import plot_error_vs_hidden
+from envcap.core.street_frame import frame_to_world, world_to_frame
 from envcap.evaluate.dynamic_occluders import (
     DEFAULT_MODELS,
     DEFAULT_RINGS,
@@ -68,7 +69,8 @@ def crowd_positions(manifest: Any, count: int, spacing: float) -> list[list[floa
     """``count`` (1-6) positions at :data:`HEIGHT_M` near the middle of the first street: at a
     probe, half a spacing along and 3 m across, a quarter along and 4 m the other way, ..."""
     st = manifest.streets[0]
-    probe = np.array(st.probes[len(st.probes) // 2].position, np.float64)
+    yaw, oxz = st.frame_yaw_deg, st.frame_origin_xz     # offsets along and across the street, in its frame
+    probe = world_to_frame(st.probes[len(st.probes) // 2].position, yaw, oxz)
     along = 0 if st.axis == "x" else 2
     cross = 2 - along
     offsets = ((0.0, 0.0), (0.5, 3.0), (0.25, -4.0), (0.75, -2.0), (0.5, 0.0), (0.1, 5.0))
@@ -78,7 +80,7 @@ def crowd_positions(manifest: Any, count: int, spacing: float) -> list[list[floa
         p[along] += fa * spacing
         p[cross] += dc
         p[1] = HEIGHT_M
-        out.append([float(v) for v in p])
+        out.append([float(v) for v in frame_to_world(p, yaw, oxz)])
     return out
 
 

@@ -118,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
                 cubes = {st: pred.street_rgba(meth, ep.street, x, dfull, inf) for st, meth in
                          (("planes_then_filter", "planes"), ("depth_then_filter", "depth_reproject")) if st in stages}
                 local = pred.local_street(ep.street, x)
-                i = local.nearest(x)
+                xf = local.to_frame(x)            # the probes, planes and cubes are in the street's frame
+                i = local.nearest(xf)
                 level0 = pred.chains.levels[0][local.layers[i]]
                 for w in powers:
                     m = truth_grid_size(w, 64)
@@ -131,7 +132,8 @@ def run(args: argparse.Namespace) -> int:
                         errs[meth][w].append(relative_rmse(p.reshape(t.shape), t))
                     if "exact_lobe" not in stages and "exact_lobe_taps8" not in stages:
                         continue
-                    sf = sigma_footprint(x, d, w, local.positions[i], local.planes[i], local.along)
+                    sf = sigma_footprint(xf, local.direction_to_frame(d), w, local.positions[i], local.lookup_planes[i],
+                                         local.along)
                     if "exact_lobe" in stages:
                         p = composite(exact_lobe(level0, sf.r, sf.power()), skyp)
                         errs["exact_lobe"][w].append(relative_rmse(p.reshape(t.shape), t))

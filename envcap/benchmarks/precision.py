@@ -44,10 +44,16 @@ DEFAULT_OFFSETS = ((1e6, 1e6), (1e6 + 123.456, 1e6 - 77.7))
 def offset_scene_dict(data: dict[str, Any], dx: float, dz: float) -> dict[str, Any]:
     """A copy of a scene document (the TOML as a dict) with everything moved by ``(dx, 0, dz)``
     meters: each street's along coordinates (``start``/``end`` or ``along_center``), ``cross``
-    and ``probe_line``; ``[ground] center`` if given; ``[mesh] offset``.  (The scene format has
-    its ground at y = 0, so there is no vertical offset.)"""
+    and ``probe_line`` (a street by its ends: ``p0`` and ``p1``); ``[ground] center`` if given;
+    each ``[mesh]`` / ``[[mesh]]`` table's ``offset`` and ``crop`` box.  (The scene format has its
+    ground at y = 0, so there is no vertical offset.)"""
     out = copy.deepcopy(data)
     for s in out.get("streets", []):
+        if "p0" in s or "p1" in s:     # a street by its ends (world plan points): its frame moves with them
+            for k in ("p0", "p1"):
+                if k in s:
+                    s[k] = [s[k][0] + dx, s[k][1] + dz]
+            continue
         da, dc = (dx, dz) if s.get("axis") == "x" else (dz, dx)
         if "start" in s or "end" in s:
             s["start"], s["end"] = s["start"] + da, s["end"] + da
@@ -60,15 +66,19 @@ def offset_scene_dict(data: dict[str, Any], dx: float, dz: float) -> dict[str, A
     if isinstance(ground, dict) and "center" in ground:
         ground["center"] = [ground["center"][0] + dx, ground["center"][1] + dz]
     mesh = out.get("mesh")
-    if isinstance(mesh, dict):
-        o = mesh.get("offset", [0.0, 0.0, 0.0])
-        mesh["offset"] = [o[0] + dx, o[1], o[2] + dz]
+    for m in [mesh] if isinstance(mesh, dict) else mesh if isinstance(mesh, list) else []:   # [mesh] or [[mesh]]
+        o = m.get("offset", [0.0, 0.0, 0.0])
+        m["offset"] = [o[0] + dx, o[1], o[2] + dz]
+        for k in ("min", "max") if isinstance(m.get("crop"), dict) else ():   # a world box
+            c = m["crop"][k]
+            m["crop"][k] = [c[0] + dx, c[1], c[2] + dz]
     return out
 
 
 def street_probes(scene: Scene, count: int) -> NDArray[np.float64]:
-    """``count`` probe positions (count, 3) m along the first street: spread along it, at heights
-    1.7 to 12 m and up to a third of its width off its probe line."""
+    """``count`` world probe positions (count, 3) m along the first street: spread along it, at
+    heights 1.7 to 12 m and up to a third of its width off its probe line (in its frame, for a
+    street at an angle)."""
     st = scene.streets[0]
     k = np.arange(count)
     along = st.start + st.length * (k + 0.5) / count
@@ -76,7 +86,7 @@ def street_probes(scene: Scene, count: int) -> NDArray[np.float64]:
     height = np.array([2.0, 1.7, 6.0, 12.0])[k % 4]
     out = np.zeros((count, 3))
     out[:, st.along_index], out[:, st.cross_index], out[:, 1] = along, cross, height
-    return out
+    return st.to_world(out)      # a street at an angle: its frame to the world (a copy otherwise)
 
 
 def compare_captures(rgba_a: NDArray[np.floating], distance_a: NDArray[np.floating],
@@ -122,6 +132,7 @@ def run(args: argparse.Namespace) -> int:
     if not home.streets:
         raise ValueError(f"scene '{home.name}' has no street to place probes on")
     probes = street_probes(home, args.probes)
+    yaw = home.streets[0].yaw_deg       # cubes along the street's frame, as the bake captures them
     sky = home.sky.build()
     effect_sets = {"all effects": home.effects, "no sun_shadows": home.effects - {"sun_shadows"}}
     rows: list[dict[str, Any]] = []
@@ -133,11 +144,11 @@ def run(args: argparse.Namespace) -> int:
             uploads = {"relative": moved.mesh, "absolute": moved.mesh.rebased(np.zeros(3))}
             for effects_name, effects in effect_sets.items():
                 with CubeCapture(home.mesh, args.size, sky=sky, effects=effects, ctx=ctx) as cap:
-                    ref = [cap.capture(p) for p in probes]
+                    ref = [cap.capture(p, yaw) for p in probes]
                 for upload, mesh in uploads.items():
                     with CubeCapture(mesh, args.size, sky=sky, effects=effects, ctx=ctx) as cap:
                         per = [compare_captures(r.rgba, r.distance, c.rgba, c.distance)
-                               for r, c in zip(ref, (cap.capture(p + offset) for p in probes))]
+                               for r, c in zip(ref, (cap.capture(p + offset, yaw) for p in probes))]
                     rows.append({"offset": [dx, 0.0, dz], "origin": moved.mesh.origin.tolist(), "upload": upload,
                                  "effects": effects_name, "probes": per,
                                  "max_flips": max(p["flips"] for p in per),
