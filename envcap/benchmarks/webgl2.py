@@ -5,7 +5,7 @@
 on SwiftShader, a CPU rasterizer: absolute times are not a GPU's, ratios are the point) and
 times ``--repeats`` full passes of ``--size``² lookups per mode (``window.envcap.bench``: median of
 the passes, each ended by a 1-pixel ``readPixels`` that waits for it).  Lookups: points spread
-over the street between its first and last probe, directions uniform on the sphere, lobe powers
+over the first street between its first and last probe (in the street's frame: any angle), directions uniform on the sphere, lobe powers
 log-uniform in [1, 10^4].  Modes: ``plain`` (one face-atlas lookup, ``envcap_face_atlas_lod``: the
 WebGL2 counterpart of ``textureLod(samplerCubeArray, ...)``), ``sky`` (one hardware cube-map
 ``textureLod``), then every method the page offers.  Writes ``webgl2.json`` and prints a

@@ -103,6 +103,7 @@ def serve(site: ViewerSite, port: int = 0, host: str = "127.0.0.1",
     """Start a :class:`ViewerServer` for ``site`` in a daemon thread; returns it and the thread
     (stop with ``server.shutdown(); server.server_close()``)."""
     server = ViewerServer(site, port, host, extra_routes)
-    thread = threading.Thread(target=server.serve_forever, name="envcap-viewer", daemon=True)
+    # a short poll: shutdown() returns within 50 ms (the default 0.5 s adds up over the tests' servers)
+    thread = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.05}, name="envcap-viewer", daemon=True)
     thread.start()
     return server, thread

@@ -5,11 +5,20 @@ runtime library for WebGL2: :func:`envcap.runtime.shader_targets.prologue` ``("w
 include path).
 
 Street uniforms are :meth:`envcap.runtime.street.RuntimeStreet.uniforms` of each manifest street
-(nominal and fitted plane sets), so the page uploads exactly what the numpy twin and the desktop
-GLSL use; a street of more than ``MAX_PROBES`` probes is cut to the ``MAX_PROBES`` probes nearest
-its middle (:meth:`envcap.runtime.street.StreetProbes.local`).  Positions in the config are world
-meters; the page converts shading points to a street's local frame as ``float32(x - origin)``
-(JavaScript numbers are float64), as :meth:`StreetUniforms.to_local` does.
+(nominal and fitted plane sets: ``frame`` and the slopes in ``planes[i].w`` included), so the page
+uploads exactly what the numpy twin and the desktop GLSL use; a street of more than ``MAX_PROBES``
+probes is cut to the ``MAX_PROBES`` probes nearest its middle
+(:meth:`envcap.runtime.street.StreetProbes.local`).  Positions in the config are world meters;
+each street carries its frame (:mod:`envcap.core.street_frame`: ``yaw_deg``, ``origin_xz`` and the
+rotation's ``cos_sin`` in float64) and the page turns shading points into it as
+``float32(R (x - (ox, 0, oz)) - origin)`` in float64 (JavaScript numbers), as
+:meth:`StreetUniforms.to_local` does; directions stay world (the GLSL turns them).
+
+A rung-ladder set (``manifest.ladder``, ``envcap capture --ladder``) is shown through its layer
+``r = 0`` of each level, the chain the manifest's lobe table describes (``probes_atlas.ktx2`` holds
+exactly those layers; the page takes layer 0 of the ``R``-layer ``sky.ktx2``): the paper-chain
+methods on the ladder's levels, not the rung blend (``envcap_rung_street.glsl``), which WebGL2
+cannot run without cube-map arrays for the sky.  ``config["ladder"]`` says so.
 """
 
 from __future__ import annotations
@@ -23,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from envcap.core.resources import expand_includes
+from envcap.core.street_frame import frame_to_world, from_frame, plan_rotation
 from envcap.probeset.manifest import Manifest, read_manifest
 from envcap.runtime import methods as runtime_methods
 from envcap.runtime.limits import MAX_PROBES
@@ -50,6 +60,15 @@ def _uniform_json(u: StreetUniforms) -> dict[str, Any]:
         v = getattr(u, f.name)
         out[f.name] = np.asarray(v).reshape(-1).tolist() if isinstance(v, np.ndarray) else int(v)
     return out
+
+
+def _ktx2_layer_count(path: Path) -> int:
+    """``layerCount`` of a KTX2 file's header (bytes 32..35, little-endian; 0 read as 1)."""
+    with open(path, "rb") as f:
+        head = f.read(36)
+    if len(head) < 36 or head[:12] != b"\xabKTX 20\xbb\r\n\x1a\n":
+        raise ValueError(f"{path}: not a KTX2 file")
+    return max(1, int.from_bytes(head[32:36], "little"))
 
 
 def _finite(v: float) -> float | None:
@@ -103,28 +122,51 @@ class ViewerSite:
                              "bake with 'envcap capture ... --webgl2'")
         if m.files.sky is None or not (root / m.files.sky).is_file():
             raise FileNotFoundError(f"{root}: sky file missing")
+        layers = _ktx2_layer_count(root / atlas)
+        if layers != 6 * m.layer_count:
+            why = (f" (a rung ladder of {m.ladder.per_level} rungs per level: the page reads one chain per probe, "
+                   "layer r = 0)" if m.ladder is not None else "")
+            raise ValueError(f"{root / atlas}: {layers} layers, the viewer needs 6 per probe = {6 * m.layer_count}{why}")
         rep = Path(report_dir).resolve() if report_dir is not None else find_report(root)
         if rep is not None and not (rep / "report.json").is_file():
             raise FileNotFoundError(f"{rep}: not an evaluation report (no report.json)")
         return ViewerSite(root, m, rep)
 
     def streets(self) -> list[dict[str, Any]]:
-        """Per street: name, axis, extent, nominal planes, probes (world positions, layers) and the
-        runtime uniforms of both plane sets (``uniforms.nominal`` / ``uniforms.fitted``)."""
+        """Per street: name, axis, ``along`` (axis index in its frame), extent and nominal planes
+        (frame coordinates), its frame (``yaw_deg``, ``origin_xz``, ``cos_sin`` = (cos, sin) of the
+        yaw, float64; yaw 0 / origin (0, 0) for a world-frame street), ``direction`` (world plan
+        unit vector (x, z) along it), ``corners`` (world plan points (x, z) of its rectangle
+        ``start..end`` x ``facade_min..facade_max``, in order around it), probes (world positions,
+        layers, nominal ground and ``ground_slope``) and the runtime uniforms of both plane sets
+        (``uniforms.nominal`` / ``uniforms.fitted``) with their ``origin`` (frame m)."""
         out = []
         for st in self.manifest.streets:
             if not st.probes:
                 continue
             sp = StreetProbes.from_manifest(st)
+            yaw, oxz = st.frame_yaw_deg, st.frame_origin_xz
             mid = np.zeros(3)
             mid[sp.along] = 0.5 * (st.start + st.end)
+            mid = frame_to_world(mid, yaw, oxz)          # StreetProbes.local takes a world point
             rs = {ps: (sp.local(mid, MAX_PROBES, ps) if sp.layers.size > MAX_PROBES else sp.runtime_street(ps))
                   for ps in ("nominal", "fitted")}
             uni = {ps: r.uniforms(self.manifest.lobes.powers) for ps, r in rs.items()}
+            r = plan_rotation(yaw)
+            axis = np.zeros(3)
+            axis[sp.along] = 1.0
+            pl = st.planes.as_array()
+            rect = np.zeros((4, 3))
+            rect[:, sp.along] = (st.start, st.end, st.end, st.start)
+            rect[:, 2 - sp.along] = (pl[0], pl[0], pl[1], pl[1])
             out.append({
                 "name": st.name, "axis": st.axis, "along": sp.along, "start": st.start, "end": st.end,
-                "center": st.center, "planes": st.planes.as_array().tolist(),
-                "probes": [{"layer": int(q.layer), "position": list(map(float, q.position))} for q in st.probes_along()],
+                "center": st.center, "planes": pl.tolist(),
+                "frame": {"yaw_deg": yaw, "origin_xz": list(oxz), "cos_sin": [float(r[0, 0]), float(r[0, 2])]},
+                "direction": from_frame(axis, yaw)[[0, 2]].tolist(),
+                "corners": frame_to_world(rect, yaw, oxz)[:, [0, 2]].tolist(),
+                "probes": [{"layer": int(q.layer), "position": list(map(float, q.position)),
+                            "ground": float(q.planes.ground), "ground_slope": q.planes.slope} for q in st.probes_along()],
                 "origin": uni["nominal"].origin.tolist(),
                 "uniforms": {ps: _uniform_json(u) for ps, u in uni.items()},
             })
@@ -176,6 +218,9 @@ class ViewerSite:
             "sun": None if sun is None else list(map(float, sun.direction)),
             "sun_in_sky": bool(m.sky.sun_baked_in_map),
             "scene": doc.get("scene", {}).get("name"),
+            "ladder": None if m.ladder is None else {   # a rung-ladder set: shown through layer r = 0 of each level
+                "mode": m.ladder.mode, "per_level": int(m.ladder.per_level),
+                "shown": "layer r = 0 of each level (the manifest's lobe table), not the rung blend"},
             "streets": self.streets(), "methods": self.methods(), "plots": self.report_plots(),
             "evaluation": self.report_positions(),
         }

@@ -8,12 +8,12 @@ import math
 
 import numpy as np
 import pytest
+from viewer_pages import open_page
 
 from envcap.formats.scene_gltf_writer import registered_scene_writer
 from envcap.probeset.store import write_probe_set
 from envcap.scene import load_scene
 from envcap.viewer import ViewerSite, serve
-from envcap.viewer.browser import find_chromium
 
 W, H, TAN_HALF_FOV = 160, 100, math.tan(math.radians(35.0))  # the canvas (made small: SwiftShader) and the page's field of view
 CAM = [50.0, 2.0, 0.0]   # canyon street 'main' (axis x, facades at z = -8 and +8), between probes
@@ -26,23 +26,15 @@ def pixel_towards(elevation_deg: float) -> list[int]:
 
 
 @pytest.fixture(scope="module")
-def scene_browser(canyon_probe_set, tmp_path_factory):
-    """Chromium on the viewer page of ``canyon_probe_set`` written with ``scene.glb``."""
-    if find_chromium() is None:
-        pytest.skip("no chromium executable on PATH (Debian: apt-get install chromium; .ci/run installs it)")
-    pytest.importorskip("websocket", reason="websocket-client is not installed (pip install websocket-client)")
-    from envcap.viewer.browser import Chromium
-
+def scene_browser(chromium, canyon_probe_set, tmp_path_factory):
+    """The session's Chromium on the viewer page of ``canyon_probe_set`` written with ``scene.glb``."""
     with registered_scene_writer(load_scene("canyon")) as names:
         d = write_probe_set(tmp_path_factory.mktemp("viewer_scene") / "canyon", canyon_probe_set, exr=False,
                             previews=False, writers=["ktx2", "webgl2", *names])
     assert (d / "scene.glb").is_file()
     server, thread = serve(ViewerSite.open(d))
     try:
-        with Chromium(1000, 560) as b:
-            b.goto(server.url)
-            assert b.evaluate("window.envcap.ready.then(() => 'ok', e => 'error: ' + e.message)") == "ok", b.errors
-            yield b
+        yield open_page(chromium, server.url)
     finally:
         server.shutdown()
         server.server_close()

@@ -8,34 +8,28 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from viewer_pages import open_page
 
 from envcap.probeset.store import read_probe_set
 from envcap.runtime.chains import ProbeChains
 from envcap.runtime.sampling import sample_street
 from envcap.runtime.street import RuntimeStreet
 from envcap.viewer import ViewerSite, serve
-from envcap.viewer.browser import find_chromium
 
 HERE = Path(__file__).resolve().parent
 THREE = HERE / "three" / "vendor"   # three.js r187 build files (MIT), vendored
 
 
 @pytest.fixture(scope="module")
-def three_page(viewer_probe_dir):
-    if find_chromium() is None:
-        pytest.skip("no chromium executable on PATH (Debian: apt-get install chromium; .ci/run installs it)")
+def three_page(chromium, viewer_probe_dir):
     if not (THREE / "three.module.js").is_file():
         pytest.fail("three.js build files missing from tests/viewer/three/vendor")
-    from envcap.viewer.browser import Chromium
 
     routes = {"/three/three.module.js": THREE / "three.module.js", "/three/three.core.js": THREE / "three.core.js",
               "/check/three_check.html": HERE / "three_check.html", "/check/three_check.js": HERE / "three_check.js"}
     server, thread = serve(ViewerSite.open(viewer_probe_dir), extra_routes=routes)
     try:
-        with Chromium(320, 240) as b:
-            b.goto(server.url + "check/three_check.html")
-            assert b.evaluate("window.check.ready.then(() => 'ok', e => 'error: ' + e.message)") == "ok", b.errors
-            yield b
+        yield open_page(chromium, server.url + "check/three_check.html", "window.check.ready")
     finally:
         server.shutdown()
         server.server_close()

@@ -73,8 +73,11 @@ export function uploadAtlas(gl, ktx) {
 // The sky (sky.ktx2, an RGBA32F cube map with the lobe ladder as mip levels) as a
 // TEXTURE_CUBE_MAP, trilinear (WebGL2 cube sampling is seamless).  RGBA32F needs
 // OES_texture_float_linear to filter; without it the sky goes up as RGBA16F (half floats).
-export function uploadSky(gl, ktx) {
-  if (ktx.faces !== 6 || ktx.layers !== 1) throw new Error("sky.ktx2: expected one cube map");
+// layer0: a rung-ladder set's R-layer sky array (manifest.ladder): its layer 0 only (rung j R of
+// level j, the chain of the manifest's lobe table; layers are stored first, so it is each level's
+// first 6 faces).
+export function uploadSky(gl, ktx, layer0 = false) {
+  if (ktx.faces !== 6 || (ktx.layers !== 1 && !layer0)) throw new Error(`sky.ktx2: expected one cube map, got ${ktx.layers} layers`);
   const linear32 = !!gl.getExtension("OES_texture_float_linear");
   const t = gl.createTexture();
   gl.bindTexture(gl.TEXTURE_CUBE_MAP, t);
@@ -102,9 +105,10 @@ export function uploadSky(gl, ktx) {
 }
 
 // Load a probe set served by `envcap view`: {atlas, sky, skyFloat32, atlasKtx, skyKtx}.
-export async function loadProbeSet(gl, files) {
+// options.skyLayer0: the sky is a rung ladder's layered array, use its layer 0 (uploadSky).
+export async function loadProbeSet(gl, files, options = {}) {
   const [atlasKtx, skyKtx] = await Promise.all([fetchKTX2(files.atlas), fetchKTX2(files.sky)]);
   const atlas = uploadAtlas(gl, atlasKtx);
-  const sky = uploadSky(gl, skyKtx);
+  const sky = uploadSky(gl, skyKtx, !!options.skyLayer0);
   return { atlas, sky: sky.texture, skyFloat32: sky.float32, atlasKtx, skyKtx };
 }

@@ -29,7 +29,8 @@ export async function loadProbeSetThree(THREE, files) {
   atlas.unpackAlignment = 1;
   atlas.needsUpdate = true;
 
-  if (s.faces !== 6 || s.layers !== 1) throw new Error(`${files.sky}: expected one cube map`);
+  // files.skyLayer0: a rung-ladder set's R-layer sky array (config.ladder): its layer 0, the manifest's chain
+  if (s.faces !== 6 || (s.layers !== 1 && !files.skyLayer0)) throw new Error(`${files.sky}: expected one cube map, got ${s.layers} layers`);
   const float = s.vkFormat === VK_RGBA32F;
   const faceTextures = (lv) => Array.from({ length: 6 }, (_, f) => {
     const n = lv.width * lv.height * 4;
@@ -59,6 +60,8 @@ export function runtimeChunk(library) {
 }
 
 // The value of the `envcap_street` struct uniform from /api/config.json's street uniforms.
+// Shading points go in as the page's street_frame.js toLocal gives them (the street's frame, minus
+// its origin); directions stay world (`frame`, (cos yaw, sin yaw), turns them in the GLSL).
 export function streetUniformValue(u) {
   return { ...u };
 }

@@ -6,13 +6,15 @@ import { loadProbeSet } from "./ktx2.js";
 import { FULLSCREEN_VS, LookupRunner, bindProbes, fragmentSource, program, setStreet } from "./runtime.js";
 import { loadGlb } from "./gltf.js";
 import { DEPTH_AB, SceneRaster } from "./scene_raster.js";
+import { distanceToStreet, groundAt, toFrame, toLocal } from "./street_frame.js";
 
 const SCENE_MAIN = `
-uniform vec3 cam_pos;            // street-local m
-uniform mat3 cam_rot;            // columns: right, up, back
+uniform vec3 cam_pos;            // street-local m (the street's frame, minus its origin)
+uniform mat3 cam_rot;            // columns: right, up, back (world directions: the runtime takes them)
 uniform vec2 viewport;
 uniform float tan_half_fov;
 uniform vec4 spheres[8];         // xyz street-local center, w radius
+uniform vec2 view_frame;         // the street's (cos yaw, sin yaw): world directions -> frame
 uniform vec4 materials[8];       // rgb albedo, w kind: 0 diffuse, 1 glossy (glossy_power), 2 mirror
 uniform int nspheres;
 uniform float glossy_power;
@@ -31,18 +33,19 @@ float hit_sphere(vec3 ro, vec3 rd, vec4 s) {
 void main() {
     vec2 uv = (gl_FragCoord.xy / viewport) * 2.0 - 1.0;
     uv.x *= viewport.x / viewport.y;
-    vec3 rd = normalize(cam_rot * vec3(uv * tan_half_fov, -1.0));
+    vec3 rd = normalize(cam_rot * vec3(uv * tan_half_fov, -1.0));   // world
+    vec3 rf = envcap_frame_dir(rd, view_frame);   // the same ray in the street's frame (cam_pos, spheres, probes)
     float tb = 1e30; int hit = -1; vec4 sph = vec4(0.0);
     for (int i = 0; i < 8; ++i) {
         if (i >= nspheres) break;
-        float t = hit_sphere(cam_pos, rd, spheres[i]);
+        float t = hit_sphere(cam_pos, rf, spheres[i]);
         if (t > 0.0 && t < tb) { tb = t; hit = i; sph = spheres[i]; }
     }
     bool marker = false;
     if (show_probes != 0) {
         for (int i = 0; i < ENVCAP_MAX_PROBES; ++i) {
             if (i >= envcap_street.count) break;
-            float t = hit_sphere(cam_pos, rd, vec4(envcap_street.pos[i].xyz, 0.25));
+            float t = hit_sphere(cam_pos, rf, vec4(envcap_street.pos[i].xyz, 0.25));
             if (t > 0.0 && t < tb) { tb = t; hit = i; marker = true; }
         }
     }
@@ -50,8 +53,9 @@ void main() {
     vec3 x = cam_pos, dir = rd, weight = vec3(1.0);
     float w = background_power;
     if (hit >= 0 && !marker) {
-        x = cam_pos + tb * rd;
-        vec3 n = normalize(x - sph.xyz);
+        x = cam_pos + tb * rf;
+        vec3 nf = normalize(x - sph.xyz);   // frame -> world: the transpose of envcap_frame_dir
+        vec3 n = vec3(view_frame.x * nf.x - view_frame.y * nf.z, nf.y, view_frame.y * nf.x + view_frame.x * nf.z);
         vec4 m = materials[hit];
         weight = m.rgb;
         dir = m.w < 0.5 ? n : reflect(rd, n);
@@ -86,7 +90,7 @@ class Viewer {
     this.vao = gl.createVertexArray();
     this.runner = new LookupRunner(gl, library, textures);
     const st = config.streets[0], p0 = st.probes[0].position, p1 = (st.probes[1] || st.probes[0]).position;
-    this.cam = { pos: [(p0[0] + p1[0]) / 2, p0[1], (p0[2] + p1[2]) / 2], yaw: st.along === 0 ? 0 : Math.PI / 2, pitch: 0.05 };
+    this.cam = { pos: [(p0[0] + p1[0]) / 2, p0[1], (p0[2] + p1[2]) / 2], yaw: Math.atan2(st.direction[1], st.direction[0]), pitch: 0.05 };
     this.glossyPower = 64; this.ev = 0; this.showProbes = true;
     this.scene = null; this.showScene = true;  // scene.glb's SceneRaster (setScene), drawn when showScene
     this.exposure0 = this.autoExposure();
@@ -97,18 +101,14 @@ class Viewer {
     const lv = this.tex.skyKtx.levels[this.tex.skyKtx.levels.length - 1], d = lv.data;
     const val = (i) => (d instanceof Float32Array ? d[i] : halfToFloat(d[i]));
     let s = 0, n = 0;
-    for (let i = 0; i < d.length; i += 4) { s += 0.2126 * val(i) + 0.7152 * val(i + 1) + 0.0722 * val(i + 2); ++n; }
+    for (let i = 0; i < d.length / this.tex.skyKtx.layers; i += 4) { s += 0.2126 * val(i) + 0.7152 * val(i + 1) + 0.0722 * val(i + 2); ++n; }
     this.skyMean = s / n;
     return s > 0 ? 0.5 / (s / n) : 1;
   }
   setScene(mesh) { this.scene = new SceneRaster(this.gl, mesh, this.skyMean, this.cfg.sun); }
-  streetIndex() {  // the street whose box is nearest to the camera
+  streetIndex() {  // the street whose box (in its own frame) is nearest to the camera
     let best = 0, bd = Infinity;
-    this.cfg.streets.forEach((s, i) => {
-      const a = this.cam.pos[s.along], c = this.cam.pos[2 - s.along];
-      const da = Math.max(s.start - a, 0, a - s.end), dc = Math.max(s.planes[0] - c, 0, c - s.planes[1]);
-      if (da + dc < bd) { bd = da + dc; best = i; }
-    });
+    this.cfg.streets.forEach((s, i) => { const dist = distanceToStreet(s, this.cam.pos); if (dist < bd) { bd = dist; best = i; } });
     return best;
   }
   forward() { const { yaw, pitch } = this.cam; return [Math.cos(pitch) * Math.cos(yaw), Math.sin(pitch), Math.cos(pitch) * Math.sin(yaw)]; }
@@ -117,9 +117,9 @@ class Viewer {
     const base = [this.cam.pos[0] + 7 * fx, 0, this.cam.pos[2] + 7 * fz], rx = -fz, rz = fx;
     const at = (lat, y, r) => [base[0] + lat * rx, y, base[2] + lat * rz, r];
     this.group = [at(-3, 0.6, 0.6), at(-1.5, 0.6, 0.6), at(0, 0.6, 0.6), at(1.5, 0.6, 0.6), at(3, 0.9, 0.35), at(3, 1.55, 0.18)];
-    // sphere y above the street's ground (manifest planes[2])
-    const g = this.cfg.streets[this.streetIndex()].planes[2];
-    this.group.forEach((s) => { s[1] += g; });
+    // sphere y above the street's ground under it (the nearest probe's ground plane and slope)
+    const st = this.cfg.streets[this.streetIndex()];
+    this.group.forEach((s) => { s[1] += groundAt(st, s); });
   }
   programFor(m) {
     if (!this.programs.has(m.name)) this.programs.set(m.name, program(this.gl, FULLSCREEN_VS, fragmentSource(this.lib, m, SCENE_MAIN), `view ${m.name}`));
@@ -134,7 +134,7 @@ class Viewer {
     gl.useProgram(prog);
     bindProbes(gl, prog, this.tex);
     setStreet(gl, prog, st.uniforms[this.method.planes === "fitted" ? "fitted" : "nominal"]);
-    const loc = (v) => [Math.fround(v[0] - o[0]), Math.fround(v[1] - o[1]), Math.fround(v[2] - o[2])];
+    const loc = (v) => toLocal(st, v);
     const f = this.forward(), right = norm(cross(f, [0, 1, 0])), up = cross(right, f);
     const U = (n) => gl.getUniformLocation(prog, n);
     gl.uniform3fv(U("cam_pos"), loc(this.cam.pos));
@@ -144,6 +144,7 @@ class Viewer {
     const sp = [], mt = [];
     this.group.forEach((s, i) => { sp.push(...loc(s), s[3]); mt.push(...MATERIALS[i].albedo, MATERIALS[i].kind); });
     gl.uniform4fv(U("spheres"), sp);
+    gl.uniform2fv(U("view_frame"), st.uniforms.nominal.frame);
     gl.uniform4fv(U("materials"), mt);
     gl.uniform1i(U("nspheres"), this.group.length);
     gl.uniform1f(U("glossy_power"), this.glossyPower);
@@ -165,7 +166,7 @@ class Viewer {
     gl.disable(gl.DEPTH_TEST);
     this.cfg.currentMethod = this.method.name;
     drawMap($("map"), this.cfg, this.cam, this.group);
-    let where = `street ${st.name}  x=${this.cam.pos.map((v) => v.toFixed(1)).join(", ")} m  method ${this.method.name}`;
+    let where = `street ${st.name}${st.frame.yaw_deg ? ` (${st.frame.yaw_deg.toFixed(1)}\u00b0)` : ""}  x=${this.cam.pos.map((v) => v.toFixed(1)).join(", ")} m  method ${this.method.name}`;
     const ev = nearestEvaluation(this.cfg.evaluation || [], this.cam.pos);
     if (ev && ev.dist < 5 && ev.e.error[this.method.name] !== undefined) {
       where += ` | evaluation position ${ev.dist.toFixed(1)} m away: rel. RMSE ${(100 * ev.e.error[this.method.name]).toFixed(1)} %`;
@@ -176,24 +177,31 @@ class Viewer {
   lookups(methodName, si, xs, ds, ws) {
     const m = methodName === "plain" || methodName === "sky" ? { name: methodName } : this.methods.find((q) => q.name === methodName);
     if (!m) throw new Error(`method ${methodName} is not available in the viewer`);
-    const st = this.cfg.streets[si], o = st.origin, n = ws.length;
+    const st = this.cfg.streets[si], n = ws.length;
     const xw = new Float32Array(4 * n), d = new Float32Array(4 * n);
-    for (let i = 0; i < n; ++i) {
-      for (let c = 0; c < 3; ++c) { xw[4 * i + c] = xs[3 * i + c] - o[c]; d[4 * i + c] = ds[3 * i + c]; }
+    for (let i = 0; i < n; ++i) {  // points: world -> street-local (frame); directions stay world
+      xw.set(toLocal(st, [xs[3 * i], xs[3 * i + 1], xs[3 * i + 2]]), 4 * i);
+      for (let c = 0; c < 3; ++c) d[4 * i + c] = ds[3 * i + c];
       xw[4 * i + 3] = ws[i];
     }
     this.runner.prepare(xw, d, 256);
     this.runner.draw(m, st.uniforms[m.planes === "fitted" ? "fitted" : "nominal"]);
     return this.runner.read();
   }
+  // Street-local points (float32, flat) of world points xs (n x 3 flat) on street si, as the GLSL gets them.
+  toLocal(si, xs) {
+    const st = this.cfg.streets[si], out = [];
+    for (let i = 0; i < xs.length; i += 3) out.push(...toLocal(st, [xs[i], xs[i + 1], xs[i + 2]]));
+    return out;
+  }
   // Median milliseconds per pass of `reps` full-screen passes of w x h lookups, per mode.
   bench(modes, w, h, reps) {
     const gl = this.gl, n = w * h, st = this.cfg.streets[0], o = st.origin;
-    const a0 = st.probes[0].position[st.along], a1 = st.probes[st.probes.length - 1].position[st.along];
+    const a0 = toFrame(st, st.probes[0].position)[st.along], a1 = toFrame(st, st.probes[st.probes.length - 1].position)[st.along];
     const xw = new Float32Array(4 * n), d = new Float32Array(4 * n);
     let seed = 7;
     const rnd = () => { seed = (seed * 1103515245 + 12345) % 2147483648; return seed / 2147483648; };
-    for (let i = 0; i < n; ++i) {  // points in the street, lobes over the sphere, w log-uniform 1 .. 1e4
+    for (let i = 0; i < n; ++i) {  // points in the street (its frame), lobes over the sphere, w log-uniform 1 .. 1e4
       const p = [0, 0, 0];
       p[st.along] = a0 + (a1 - a0) * rnd(); p[2 - st.along] = st.planes[0] + (st.planes[1] - st.planes[0]) * rnd(); p[1] = st.planes[2] + 0.2 + 3 * rnd();
       const z = 2 * rnd() - 1, phi = 2 * Math.PI * rnd(), r = Math.sqrt(1 - z * z);
@@ -239,13 +247,10 @@ function halfToFloat(h) {
 }
 
 // The top-down map: streets (between their facades), probes, the spheres, the camera.
-function mapTransform(canvas, cfg) {
+function mapTransform(canvas, cfg) {  // bounds of the streets' world corners
   let x0 = Infinity, x1 = -Infinity, z0 = Infinity, z1 = -Infinity;
   for (const s of cfg.streets) {
-    const lo = [0, 0], hi = [0, 0];
-    const a = s.along === 0 ? 0 : 1;
-    lo[a] = s.start; hi[a] = s.end; lo[1 - a] = s.planes[0]; hi[1 - a] = s.planes[1];
-    x0 = Math.min(x0, lo[0]); x1 = Math.max(x1, hi[0]); z0 = Math.min(z0, lo[1]); z1 = Math.max(z1, hi[1]);
+    for (const [x, z] of s.corners) { x0 = Math.min(x0, x); x1 = Math.max(x1, x); z0 = Math.min(z0, z); z1 = Math.max(z1, z); }
   }
   const pad = 10, sc = Math.min((canvas.width - 2 * pad) / (x1 - x0 || 1), (canvas.height - 2 * pad) / (z1 - z0 || 1));
   const ox = pad + 0.5 * (canvas.width - 2 * pad - sc * (x1 - x0)), oz = pad + 0.5 * (canvas.height - 2 * pad - sc * (z1 - z0));
@@ -255,11 +260,10 @@ function mapTransform(canvas, cfg) {
 function drawMap(canvas, cfg, cam, group) {
   const c = canvas.getContext("2d"), T = mapTransform(canvas, cfg);
   c.fillStyle = "#222"; c.fillRect(0, 0, canvas.width, canvas.height);
-  for (const s of cfg.streets) {
-    const a = s.along === 0;
-    const [u0, v0] = T.to(a ? s.start : s.planes[0], a ? s.planes[0] : s.start);
-    const [u1, v1] = T.to(a ? s.end : s.planes[1], a ? s.planes[1] : s.end);
-    c.fillStyle = "#555"; c.fillRect(u0, v0, Math.max(u1 - u0, 2), Math.max(v1 - v0, 2));
+  for (const s of cfg.streets) {  // the street between its facades: a rectangle turned with its frame
+    c.fillStyle = "#555"; c.strokeStyle = "#555"; c.lineWidth = 2; c.beginPath();
+    s.corners.forEach(([x, z], k) => { const [u, v] = T.to(x, z); if (k === 0) c.moveTo(u, v); else c.lineTo(u, v); });
+    c.closePath(); c.fill(); c.stroke();
     c.fillStyle = "#fc3";
     for (const p of s.probes) { const [u, v] = T.to(p.position[0], p.position[2]); c.beginPath(); c.arc(u, v, 3, 0, 2 * Math.PI); c.fill(); }
   }
@@ -335,7 +339,7 @@ async function main() {
   const [config, library] = await Promise.all([
     fetch("/api/config.json").then((r) => r.json()), fetch("/api/runtime.glsl").then((r) => r.text())]);
   status("loading probes ...");
-  const textures = await loadProbeSet(gl, config.files);
+  const textures = await loadProbeSet(gl, config.files, { skyLayer0: !!config.ladder });
   const viewer = new Viewer(config, library, gl, textures);
   if (config.files.scene) {
     status("loading scene.glb ...");
@@ -350,6 +354,7 @@ async function main() {
   viewer.render();
   status(`${config.scene || "probe set"}: ${config.streets.length} street(s), ${config.streets.reduce((n, s) => n + s.probes.length, 0)} probes, ` +
          `${config.resolution}\u00b2 faces, sky ${textures.skyFloat32 ? "RGBA32F" : "RGBA16F"}` +
+         (config.ladder ? `, rung ladder ${config.ladder.mode}: shown through ${config.ladder.shown}` : "") +
          (viewer.scene ? `, scene.glb ${viewer.scene.triangles} triangles` : ""));
   return viewer;
 }
@@ -364,4 +369,5 @@ ready.then((v) => {
   window.envcap.lookups = (...a) => v.lookups(...a);
   window.envcap.bench = (...a) => v.bench(...a);
   window.envcap.methods = () => v.methods.map((m) => m.name);
+  window.envcap.mapPoint = (x, z) => mapTransform($("map"), v.cfg).to(x, z);  // world plan point -> map pixel
 });
