@@ -13,7 +13,15 @@ moments that correct the composite after filtering when the sky changes after th
 * ``sky_visibility.json``: ``order``, ``first_level``, ``layers_per_probe``, ``max_power``,
   ``ladder`` (:meth:`envcap.core.rungs.RungLadder.to_manifest`), ``baked_sky_sh`` (the set's sky
   map projected on the same basis, ``(n_sh, 3)``: the base of :func:`envcap.runtime.sky_visibility.sky_delta`),
-  ``gradient_step``, ``basis``, ``layout``.
+  ``gradient_step``, ``basis``, ``layout``; a set with an angled street (some ``yaw_deg`` other
+  than 0) also ``probe_yaw_deg`` (per layer) and ``frame``.
+
+Frames: each probe's moments are in its street's frame, like its cube (the manifest's
+``streets[].yaw_deg``, :mod:`envcap.core.street_frame`): texel ``f`` holds the moments of the
+world direction ``R^T f``.  ``baked_sky_sh`` is the world's sky.  The runtime reads a probe's
+moments along ``R d`` and turns the sky's coefficients by ``R``
+(:func:`envcap.runtime.sky_visibility.sky_visible` ``yaw_deg``, GLSL ``envcap_sky_visible``
+``frame``; ``docs/lobes.md``, "A sky that changes").
 
 Manifest entries: ``files.sky_visibility``, ``files.sky_visibility_table``.  Parameters: none.
 Bytes per probe: :meth:`~envcap.prefilter.sky_visibility.SkyVisibility.bytes_per_probe`
@@ -65,6 +73,11 @@ def write_sky_visibility(out_dir: Path, ps: ProbeSet) -> FileEntries:
             "basis": "real SH, z polar, l = 0..order, m = -l..l (envcap.prefilter.sky_visibility.sh_basis)",
             "layout": "mip k = rung level first_level + k; layer p * layers_per_probe + q // 4, component q % 4, "
                       "q = r * (order + 1)^2 + c"}
+    yaws = {p.layer: st.frame_yaw_deg for st in ps.manifest.streets for p in st.probes}
+    if any(yaws.values()):                        # unframed sets: today's table, byte for byte
+        meta["probe_yaw_deg"] = [yaws.get(i, 0.0) for i in range(ps.layer_count)]
+        meta["frame"] = ("probe p's moments are in its street's frame (yaw probe_yaw_deg[p], manifest streets[].yaw_deg): "
+                         "read them along R d, turn the world's sky coefficients by R")
     (out_dir / TABLE_FILE).write_text(json.dumps(meta, indent=1))
     return {"sky_visibility": TEXTURE_FILE, "sky_visibility_table": TABLE_FILE}
 

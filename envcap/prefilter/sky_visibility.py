@@ -17,6 +17,10 @@ constants, same order).  :func:`band_factors`: the Legendre coefficients ``lambd
 normalized ``cos^w`` lobe (``filter(Y_lm) = lambda_l(w) Y_lm``), ``lambda_0 = 1``,
 ``lambda_1 = (w + 1) / (w + 2)``, ``lambda_l = lambda_{l-2} (w - l + 2) / (w + l + 1)``.
 
+Frame: ``V`` is in the alpha cube's own axes: for a probe of an angled street, its street's frame
+(:mod:`envcap.core.street_frame`, texel ``f`` = world direction ``R^T f``); the runtime turns
+world lookups into it (:func:`envcap.runtime.sky_visibility.sky_visible` ``yaw_deg``).
+
 Storage (:class:`SkyVisibility`): the levels ``j >= first_level >= 1`` of the rung ladder (the
 levels whose rungs all have ``w <= max_power``: 32^2, 16^2, 8^2 faces for ``max_power = 130``),
 ``(P R, 6, N_j, N_j, n_sh)`` float32, layer ``p R + r`` = rung ``j R + r`` of probe ``p``.

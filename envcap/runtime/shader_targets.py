@@ -189,7 +189,7 @@ float xr[ENVCAP_MAX_RUNGS];
 for (int k = 0; k < ENVCAP_MAX_RUNGS; ++k) xr[k] = 16.0 - 0.25 * float(k);
 vec3 ksh[ENVCAP_SKY_VIS_MAX_SH];
 for (int k = 0; k < ENVCAP_SKY_VIS_MAX_SH; ++k) ksh[k] = vec3(0.1 * float(k));
-o = vec4(envcap_sky_visible(probes, skyd, normalize(b.xyz), a.w, c.z, c.w, xr, 12, 4, 1, ksh, 9, a.x, a.yzw, b.xyz, 2), 1.0);"""),
+o = vec4(envcap_sky_visible(probes, skyd, normalize(b.xyz), vec2(0.8, 0.6), a.w, c.z, c.w, xr, 12, 4, 1, ksh, 9, a.x, a.yzw, b.xyz, 2), 1.0);"""),
     "envcap_face_atlas": RuntimeUnit(("runtime/envcap_face_atlas.glsl",), "ENVCAP_BINDING(3) uniform sampler2DArray atlas;\n", """
 o = envcap_face_atlas_lod(atlas, normalize(b.xyz), a.w, c.w);"""),
 }

@@ -34,6 +34,12 @@ gradient of ``K' - s K`` ("delta_local1").  The ``"sh_residual"`` forms are exac
 0 or all 1 (up to the lookup of ``V``).  Rungs not stored (``i < first_rung``, ``w >
 max_power``) use ``alpha_w K'_w``.  ``O_w`` blends the rungs ``floor(u)`` and ``floor(u) + 1`` of
 the rung position ``u`` as :func:`envcap.runtime.rungs.rung_fetch` does.  Float64.
+
+Angled streets: a probe's ``V`` is in its street's frame (``R``, :mod:`envcap.core.street_frame`),
+the sky in the world's; ``sky_visible(..., yaw_deg)`` reads ``V`` along ``R d``, turns ``D`` into
+the frame (:func:`frame_coefficients`: ``l = 1`` as the vector, ``R k``) and the gradient's
+tangents by ``R`` for ``m`` and ``F``, the sky's lookups staying along the world's ``d``
+(derivation: ``docs/lobes.md``, "A sky that changes").
 """
 
 from __future__ import annotations
@@ -49,6 +55,7 @@ from envcap.core import cube as cube_geometry
 from envcap.core import cube_sampling
 from envcap.core.color import luminance
 from envcap.core.rungs import rung_ladder
+from envcap.core.street_frame import plan_rotation
 from envcap.prefilter.sky_visibility import (
     DEFAULT_MAX_POWER,
     SkyVisibility,
@@ -68,6 +75,7 @@ __all__ = [
     "Correction",
     "check_sky_coefficients",
     "composite_changed_sky",
+    "frame_coefficients",
     "glsl_coefficients",
     "sh_projection_error",
     "sky_delta",
@@ -128,6 +136,21 @@ def sky_delta(k_new: ArrayLike, k_baked: ArrayLike, order: int) -> tuple[NDArray
     return sc, kn - sc * kb
 
 
+def frame_coefficients(k: ArrayLike, yaw_deg: float, order: int) -> NDArray[np.float64]:
+    """The world sky's SH coefficients ``k`` ``((order + 1)^2, 3)`` in the frame of a street at
+    ``yaw_deg`` (:func:`envcap.core.street_frame.plan_rotation` ``R``): ``k_f`` with ``sum k_f Y(f)
+    = sum k Y(R^T f)`` for every frame direction ``f`` (each band turns within itself; ``l = 1``:
+    the vector ``(k_11, k_1-1, k_10)`` (x, y, z) becomes ``R`` times it, ``docs/lobes.md``).  Exact
+    up to rounding (a least-squares fit on 96 directions, well posed for ``l <= 4``); ``yaw_deg = 0``
+    returns ``k`` unchanged.  ``ValueError``: bad ``k``, a non-finite yaw."""
+    kk = check_sky_coefficients(k, order)
+    rot = plan_rotation(yaw_deg)
+    if yaw_deg == 0.0:
+        return kk.copy()
+    x = cube_geometry.texel_directions(4).reshape(-1, 3)
+    return np.linalg.lstsq(sh_basis(x, order), sh_basis(x @ rot, order) @ kk, rcond=None)[0]
+
+
 def tangent_frame(d: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``(t1, t2)`` ``(M, 3)``: unit tangents of unit ``d`` ``(M, 3)``, ``t1 = normalize(d x h)`` with
     ``h = +Y`` where ``|d.y| < 0.9`` (else ``+X``), ``t2 = d x t1`` (GLSL ``envcap_sky_tangents``)."""
@@ -141,19 +164,33 @@ def tangent_frame(d: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64
 def sky_visible(vis: SkyVisibility, d: ArrayLike, probe: ArrayLike, w: ArrayLike, k: ArrayLike,
                 alpha_w: ArrayLike, sky_w: ArrayLike, correction: Correction = "sh_residual",
                 base_w: ArrayLike | None = None,
-                gradient_of: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None) -> NDArray[np.float64]:
-    """``O_w ~ filter(alpha K')`` ``(M, 3)`` (module docstring) along unit ``d`` ``(M, 3)`` of probe
-    index ``probe`` for lobe power ``w`` (``w < 0``/NaN as 0, as the rung lookup), SH coefficients
-    ``k`` = ``D`` ``(n_sh, 3)``, the runtime's alpha ``alpha_w`` ``(M,)``, new sky ``K'_w`` ``sky_w``
-    ``(M, 3)`` and base ``B_w`` ``base_w`` ``(M, 3)`` (``None``: 0).  ``gradient_of`` (with
-    ``"sh_residual"``, order >= 1): ``dirs (M, 3) -> (M, 3)``, the lookup of ``K' - B`` at the same
-    ``w`` and probe rows: adds the local gradient term (module docstring)."""
+                gradient_of: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+                yaw_deg: float = 0.0) -> NDArray[np.float64]:
+    """``O_w ~ filter(alpha K')`` ``(M, 3)`` (module docstring) along unit world ``d`` ``(M, 3)`` of
+    probe index ``probe`` for lobe power ``w`` (``w < 0``/NaN as 0, as the rung lookup), SH
+    coefficients ``k`` = ``D`` ``(n_sh, 3)`` of the world's sky, the runtime's alpha ``alpha_w``
+    ``(M,)``, new sky ``K'_w`` ``sky_w`` ``(M, 3)`` and base ``B_w`` ``base_w`` ``(M, 3)`` (``None``:
+    0), all looked up along the world's ``d``.  ``gradient_of`` (with ``"sh_residual"``, order >= 1):
+    ``world dirs (M, 3) -> (M, 3)``, the lookup of ``K' - B`` at the same ``w`` and probe rows: adds
+    the local gradient term (module docstring).  ``yaw_deg``: the frame of the probes' street
+    (:mod:`envcap.core.street_frame`; ``vis`` holds its probes' moments in that frame): ``V`` is
+    read along ``R d``, ``k`` turned into the frame (:func:`frame_coefficients`), the tangents and
+    steps of the gradient turned by ``R`` (``docs/lobes.md``, "A sky that changes"); 0: the world,
+    the same numbers as without it."""
     if correction not in ("sh", "sh_residual"):
         raise ValueError(f"correction must be 'sh' or 'sh_residual', got {correction!r}")
     kk = check_sky_coefficients(k, vis.order)
     if gradient_of is not None and vis.order < 1:
         raise ValueError("the gradient term needs the l = 1 visibility moments (order >= 1)")
     d = np.asarray(d, dtype=np.float64).reshape(-1, 3)
+    rot = plan_rotation(yaw_deg) if yaw_deg != 0.0 else None        # checks a non-finite yaw too
+    if rot is not None:
+        kk = frame_coefficients(kk, yaw_deg, vis.order)
+
+    def fr(x: NDArray[np.float64]) -> NDArray[np.float64]:          # world -> the probes' frame
+        return x if rot is None else x @ rot.T
+
+    fd = fr(d)
     m = d.shape[0]
     lad, r_per = vis.ladder, vis.ladder.per_level
     nr = lad.rungs
@@ -164,7 +201,7 @@ def sky_visible(vis: SkyVisibility, d: ArrayLike, probe: ArrayLike, w: ArrayLike
     i0 = np.floor(u).astype(np.int64)
     i1 = np.minimum(i0 + 1, nr - 1)
     t = (u - i0)[:, None]
-    ylm = sh_basis(d, vis.order)
+    ylm = sh_basis(fd, vis.order)
     bands = band_of_coefficient(vis.order)
     powers = np.asarray(lad.powers, np.float64)
     b_w = np.zeros((m, 3)) if base_w is None else np.broadcast_to(np.asarray(base_w, np.float64).reshape(-1, 3), (m, 3))
@@ -178,19 +215,20 @@ def sky_visible(vis: SkyVisibility, d: ArrayLike, probe: ArrayLike, w: ArrayLike
         for tk in tangent_frame(d):
             dp, dm = d + h * tk, d - h * tk
             dp, dm = dp / np.linalg.norm(dp, axis=1, keepdims=True), dm / np.linalg.norm(dm, axis=1, keepdims=True)
-            grad.append((tk, dp, dm, (np.asarray(gradient_of(dp), np.float64) - np.asarray(gradient_of(dm), np.float64))
+            grad.append((fr(tk), fr(dp), fr(dm),
+                         (np.asarray(gradient_of(dp), np.float64) - np.asarray(gradient_of(dm), np.float64))
                          / (2.0 * np.sin(h))))
 
     def rung_term(i: NDArray[np.int64]) -> NDArray[np.float64]:
         stored = i >= vis.first_rung
         lod = np.maximum(i // r_per - vis.first_level, 0).astype(np.float64)
-        v = cube_sampling.sample_cube_array(vis.levels, d, base + (i % r_per), lod)      # (M, n_sh)
+        v = cube_sampling.sample_cube_array(vis.levels, fd, base + (i % r_per), lod)     # (M, n_sh), frame
         o = a_w[:, None] * b_w + v @ kk
         if correction == "sh_residual":
             lam = band_factors(powers[i], vis.order)[:, bands]                             # (M, n_sh)
             o = o + (v[:, :1] / SH_C[0]) * (s_w - b_w - (lam * ylm) @ kk)
         if grad is not None:
-            mom = v[:, [3, 1, 2]] / SH_C[1]                                                # filter(alpha u), xyz
+            mom = v[:, [3, 1, 2]] / SH_C[1]                                      # filter(alpha u), xyz, frame
             lam1 = band_factors(powers[i], 1)[:, 1:2]
             for tk, dp, dm, dc in grad:
                 df = ((lam * sh_basis(dp, vis.order)) @ kk - (lam * sh_basis(dm, vis.order)) @ kk) / (2.0 * np.sin(h))
@@ -218,9 +256,11 @@ def sky_visibility_of(probe_set: ProbeSet, mode: str = "half_octave", order: int
                                     quality, ctx)
 
 
-def glsl_coefficients(k: ArrayLike, order: int) -> NDArray[np.float32]:
-    """``k`` padded to the GLSL uniform ``vec3 ksh[ENVCAP_SKY_VIS_MAX_SH]`` ``(25, 3)`` float32."""
-    kk = check_sky_coefficients(k, order)
+def glsl_coefficients(k: ArrayLike, order: int, yaw_deg: float = 0.0) -> NDArray[np.float32]:
+    """The world sky's coefficients ``k`` turned into the frame of a street at ``yaw_deg``
+    (:func:`frame_coefficients`; 0: ``k`` itself) and padded to the GLSL uniform ``vec3
+    ksh[ENVCAP_SKY_VIS_MAX_SH]`` ``(25, 3)`` float32: one set per street and sky change."""
+    kk = frame_coefficients(k, yaw_deg, order)
     out = np.zeros((GLSL_MAX_SH, 3), np.float32)
     out[:kk.shape[0]] = kk
     return out

@@ -17,7 +17,14 @@
 //         [mode >= 1] + a_i (K'_w - base_w - F_i(d))
 //         [mode >= 2] + sum_k (m_i . t_k) d/dt_k (C'_w - F_i)(d) / lambda_1(w_i),   C' = K' - B.
 // Rungs below `first_level * per_level` have no V: O_i = alpha_w K'_w there.
+// Frames (docs/lobes.md, "A sky that changes"): a probe's V is in its street's frame (cube axes
+// turned by the street's yaw, frame = (cos, sin) = EnvcapStreet.frame), the sky in the world's.
+// d is the world direction: the sky's rungs (K'_w, base_w, skyd) are read along d and d +- h t_k,
+// V along R d (envcap_frame_dir); ksh, F_i, m_i and the tangents are the frame's: ksh = the sky's
+// coefficients turned by R (envcap.runtime.sky_visibility.glsl_coefficients(k, order, yaw)).
+// frame = (1, 0): the world, as before.
 #include "runtime/envcap_lobes.glsl"
+#include "runtime/envcap_street.glsl"
 #ifndef ENVCAP_SKY_VIS_MAX_SH
 #define ENVCAP_SKY_VIS_MAX_SH 25
 #endif
@@ -93,9 +100,19 @@ void envcap_sky_gradient(ENVCAP_PROBES_SAMPLER skyd, vec3 d, float sbase, float 
             - envcap_rung_fetch(skyd, g.m2, sbase, w, xr, n, per_level).rgb) * g.inv2s;
 }
 
+// The tangents and steps of g (world) turned into the street's frame: g.g1, g.g2 (the sky's
+// differences along them) are the same numbers in either frame.
+void envcap_sky_gradient_to_frame(inout EnvcapSkyGradient g, vec2 frame)
+{
+    g.t1 = envcap_frame_dir(g.t1, frame); g.t2 = envcap_frame_dir(g.t2, frame);
+    g.p1 = envcap_frame_dir(g.p1, frame); g.m1 = envcap_frame_dir(g.m1, frame);
+    g.p2 = envcap_frame_dir(g.p2, frame); g.m2 = envcap_frame_dir(g.m2, frame);
+}
+
 // O_i of one stored rung i: level i / per_level - first_level of `vis`, rung layer i % per_level.
-// mode 0: sum ksh V_i; 1: + the residual term; 2: + the gradient term (g).
-vec3 envcap_sky_visible_rung(ENVCAP_PROBES_SAMPLER vis, vec3 d, float vbase, int i, float xr_i, int per_level,
+// mode 0: sum ksh V_i; 1: + the residual term; 2: + the gradient term (g).  fd, g: the street's
+// frame (fd = R d; g turned by envcap_sky_gradient_to_frame); sky_w, base_w: the world's lookups.
+vec3 envcap_sky_visible_rung(ENVCAP_PROBES_SAMPLER vis, vec3 fd, float vbase, int i, float xr_i, int per_level,
                              int first_level, vec3 ksh[ENVCAP_SKY_VIS_MAX_SH], int nsh, float alpha_w, vec3 sky_w,
                              vec3 base_w, int mode, EnvcapSkyGradient g)
 {
@@ -106,7 +123,7 @@ vec3 envcap_sky_visible_rung(ENVCAP_PROBES_SAMPLER vis, vec3 d, float vbase, int
     float v[4];                                   // V_00, V_1-1 (y), V_10 (z), V_11 (x)
     v[0] = 0.0; v[1] = 0.0; v[2] = 0.0; v[3] = 0.0;
     for (int layer = q0 / 4; layer <= (q0 + nsh - 1) / 4; ++layer) {
-        vec4 t = ENVCAP_PROBES_LOD(vis, d, vbase + float(layer), lod);
+        vec4 t = ENVCAP_PROBES_LOD(vis, fd, vbase + float(layer), lod);
         for (int k = 0; k < 4; ++k) {
             int c = 4 * layer + k - q0;
             if (c < 0 || c >= nsh) continue;
@@ -117,9 +134,9 @@ vec3 envcap_sky_visible_rung(ENVCAP_PROBES_SAMPLER vis, vec3 d, float vbase, int
     if (mode >= 1) {
         float lam[5];
         envcap_lobe_bands(exp2(xr_i) - 1.0, lam);
-        o += (v[0] / 0.282094791773878) * (sky_w - base_w - envcap_sh_filtered(d, ksh, nsh, lam));
+        o += (v[0] / 0.282094791773878) * (sky_w - base_w - envcap_sh_filtered(fd, ksh, nsh, lam));
         if (mode >= 2) {
-            vec3 mom = vec3(v[3], v[1], v[2]) / 0.488602511902920;      // filter(alpha u)
+            vec3 mom = vec3(v[3], v[1], v[2]) / 0.488602511902920;      // filter(alpha u), frame
             vec3 df1 = (envcap_sh_filtered(g.p1, ksh, nsh, lam) - envcap_sh_filtered(g.m1, ksh, nsh, lam)) * g.inv2s;
             vec3 df2 = (envcap_sh_filtered(g.p2, ksh, nsh, lam) - envcap_sh_filtered(g.m2, ksh, nsh, lam)) * g.inv2s;
             o += (dot(mom, g.t1) * (g.g1 - df1) + dot(mom, g.t2) * (g.g2 - df2)) / lam[1];
@@ -128,13 +145,15 @@ vec3 envcap_sky_visible_rung(ENVCAP_PROBES_SAMPLER vis, vec3 d, float vbase, int
     return o;
 }
 
-// O_w ~ filter(alpha K') along unit d for lobe power w (rung table xr, n rungs, per_level rungs
-// per level): rungs floor(u) and the next (u = envcap_rung_of_w), blended in u as envcap_rung_fetch.
-// alpha_w, sky_w: the runtime's own alpha and new-sky lookups at (d, w); base_w: s K_w or 0.
+// O_w ~ filter(alpha K') along unit world d for lobe power w (rung table xr, n rungs, per_level
+// rungs per level): rungs floor(u) and the next (u = envcap_rung_of_w), blended in u as
+// envcap_rung_fetch.  frame: the probe's street (EnvcapStreet.frame; (1, 0): the world); ksh in
+// that frame (header).  alpha_w, sky_w: the runtime's own alpha and new-sky lookups at (d, w);
+// base_w: s K_w or 0.
 // vbase: the probe's first layer of `vis` (probe * ceil(per_level * nsh / 4)).  mode 2 also reads
 // `skyd` (the rungs of K' - B, layer sbase): 4 more rung fetches.  mode 0 / 1 never read skyd.
-vec3 envcap_sky_visible(ENVCAP_PROBES_SAMPLER vis, ENVCAP_PROBES_SAMPLER skyd, vec3 d, float vbase, float sbase,
-                        float w, float xr[ENVCAP_MAX_RUNGS], int n, int per_level, int first_level,
+vec3 envcap_sky_visible(ENVCAP_PROBES_SAMPLER vis, ENVCAP_PROBES_SAMPLER skyd, vec3 d, vec2 frame, float vbase,
+                        float sbase, float w, float xr[ENVCAP_MAX_RUNGS], int n, int per_level, int first_level,
                         vec3 ksh[ENVCAP_SKY_VIS_MAX_SH], int nsh, float alpha_w, vec3 sky_w, vec3 base_w, int mode)
 {
     per_level = max(per_level, 1);
@@ -148,11 +167,15 @@ vec3 envcap_sky_visible(ENVCAP_PROBES_SAMPLER vis, ENVCAP_PROBES_SAMPLER skyd, v
     vec3 plain = alpha_w * sky_w;
     if (i0 < first && !(t > 0.0 && i1 >= first)) return plain;
     EnvcapSkyGradient g = EnvcapSkyGradient(d, d, d, d, d, d, vec3(0.0), vec3(0.0), 0.0);
-    if (mode >= 2) envcap_sky_gradient(skyd, d, sbase, w, xr, n, per_level, g);
-    vec3 a = i0 >= first ? envcap_sky_visible_rung(vis, d, vbase, i0, xr[i0], per_level, first_level, ksh, nsh,
+    if (mode >= 2) {
+        envcap_sky_gradient(skyd, d, sbase, w, xr, n, per_level, g);
+        envcap_sky_gradient_to_frame(g, frame);
+    }
+    vec3 fd = envcap_frame_dir(d, frame);
+    vec3 a = i0 >= first ? envcap_sky_visible_rung(vis, fd, vbase, i0, xr[i0], per_level, first_level, ksh, nsh,
                                                    alpha_w, sky_w, base_w, mode, g) : plain;
     if (!(t > 0.0)) return a;
-    vec3 b = i1 >= first ? envcap_sky_visible_rung(vis, d, vbase, i1, xr[i1], per_level, first_level, ksh, nsh,
+    vec3 b = i1 >= first ? envcap_sky_visible_rung(vis, fd, vbase, i1, xr[i1], per_level, first_level, ksh, nsh,
                                                    alpha_w, sky_w, base_w, mode, g) : plain;
     return a + t * (b - a);
 }

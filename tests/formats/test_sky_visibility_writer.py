@@ -2,6 +2,7 @@
 moments of its captures (read back through the KTX2 reader and against the filter run here) and
 their table; the default writers and today's manifests are unchanged."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -35,3 +36,18 @@ def test_sky_visibility_writer_round_trip(canyon_probe_set, gl_ctx, tmp_path):
     plain = write_probe_set(tmp_path / "plain", canyon_probe_set, exr=False, previews=False, writers=["ktx2"])
     assert "sky_visibility" not in json.loads((plain / "manifest.json").read_text())["files"]
     assert not (plain / "sky_visibility.ktx2").exists()
+    assert "probe_yaw_deg" not in table and "frame" not in table      # unframed: today's table
+
+
+def test_sky_visibility_writer_records_street_frames(canyon_probe_set, tmp_path):
+    # the moments are the captures' (already in each street's frame); the table says which frame
+    ps = canyon_probe_set
+    st = ps.manifest.streets[0]
+    framed = dataclasses.replace(ps, manifest=dataclasses.replace(
+        ps.manifest, streets=(dataclasses.replace(st, yaw_deg=30.0), *ps.manifest.streets[1:])))
+    files = sky_visibility_writer.write_sky_visibility(tmp_path, framed)
+    table = json.loads((tmp_path / files["sky_visibility_table"]).read_text())
+    want = [0.0] * ps.layer_count
+    for p in st.probes:
+        want[p.layer] = 30.0
+    assert table["probe_yaw_deg"] == want and "frame" in table

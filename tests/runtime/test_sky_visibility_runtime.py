@@ -11,6 +11,7 @@ import pytest
 from envcap.core import cube as cube_geometry
 from envcap.core.color import luminance
 from envcap.core.rungs import rung_ladder
+from envcap.core.street_frame import plan_rotation
 from envcap.gpu.cube_array import CubeArrayTexture
 from envcap.gpu.glsl_harness import run_glsl
 from envcap.prefilter.exact import convolve_exact_dirs
@@ -22,6 +23,7 @@ from envcap.prefilter.sky_visibility import (
 from envcap.runtime.rungs import MAX_RUNGS, RungChains, rung_table
 from envcap.runtime.sky_visibility import (
     composite_changed_sky,
+    frame_coefficients,
     glsl_coefficients,
     sh_projection_error,
     sky_delta,
@@ -40,8 +42,9 @@ def _canyon_alpha(n):
     return (((np.abs(d[..., 0]) > 0.45) & (d[..., 1] < 0.5)) | (d[..., 1] < 0.0)).astype(np.float64)
 
 
-@pytest.mark.parametrize("order", [1, 4])
-def test_glsl_sky_visible_matches_numpy(gl_ctx, order):
+@pytest.mark.parametrize(("order", "yaw"), [(1, 0.0), (1, -121.0), (4, 37.0)])
+def test_glsl_sky_visible_matches_numpy(gl_ctx, order, yaw):
+    # yaw: the probes' street frame (V read along R d, ksh turned by R; the sky's rungs along d)
     rng = np.random.default_rng(order)
     lad = rung_ladder(32, "half_octave")          # (32, 16, 8); V on 16^2 and 8^2 (w <= 30)
     n_sh, probes = (order + 1) ** 2, 2
@@ -62,13 +65,14 @@ def test_glsl_sky_visible_matches_numpy(gl_ctx, order):
     tex, sky_tex = CubeArrayTexture(vis.packed_levels()), CubeArrayTexture(skyd.levels)
     try:
         sky_tex.use(5)
-        got = run_glsl(gl_ctx, "o[i] = vec4(envcap_sky_visible(probes, skyd, d[i].xyz, b[i].x, s[i].w, b[i].y, xr, nr, 4, 1,"
+        got = run_glsl(gl_ctx, "o[i] = vec4(envcap_sky_visible(probes, skyd, d[i].xyz, frame, b[i].x, s[i].w, b[i].y, xr, nr, 4, 1,"
                                " ksh, nsh, b[i].z, s[i].xyz, k[i].xyz, int(b[i].w)), 0.0);",
                        {"d": d, "b": np.c_[probe * vis.layers_per_probe, np.where(np.isfinite(w), w, 3e38), alpha_w, mode],
                         "s": np.c_[sky_w, sky_layer * 4], "k": base_w}, {"o": 3},
-                       uniforms={"xr": xr, "nr": lad.rungs, "ksh": glsl_coefficients(k, order), "nsh": n_sh},
+                       uniforms={"xr": xr, "nr": lad.rungs, "ksh": glsl_coefficients(k, order, yaw), "nsh": n_sh,
+                                 "frame": np.array([np.cos(np.radians(yaw)), np.sin(np.radians(yaw))], np.float32)},
                        declarations="layout(binding = 5) uniform samplerCubeArray skyd; uniform float xr[ENVCAP_MAX_RUNGS];"
-                                    " uniform int nr; uniform vec3 ksh[25]; uniform int nsh;",
+                                    " uniform int nr; uniform vec3 ksh[25]; uniform int nsh; uniform vec2 frame;",
                        includes=("runtime/envcap_sky_visibility.glsl",), probes=tex)["o"]
     finally:
         tex.release()
@@ -79,7 +83,7 @@ def test_glsl_sky_visible_matches_numpy(gl_ctx, order):
         ws = w[sel]
         grad = (lambda dd, ws=ws, sl=sky_layer[sel]: skyd.fetch(dd, sl, ws)[:, :3]) if md == 2 else None
         want[sel] = sky_visible(vis, d[sel], probe[sel], ws, k, alpha_w[sel], sky_w[sel], "sh" if md == 0 else "sh_residual",
-                                base_w[sel], grad)
+                                base_w[sel], grad, yaw_deg=yaw)
     assert np.all(np.isfinite(got))
     np.testing.assert_allclose(got, want, rtol=2e-3, atol=2e-3)
     plain = w >= lad.powers[3]                    # no V stored above w = 30: alpha_w K'_w
@@ -176,3 +180,69 @@ def test_band_limited_sky_and_hard_inputs(gl_ctx):
     w = np.array([np.nan, -1.0, 0.0, 1.0, 7.0, np.inf])
     got = sky_visible(one, _dirs(rng, 6), 0, w, kb, 1.0, np.ones((6, 3)))
     assert np.all(np.isfinite(got))
+
+
+def _asymmetric_alpha(f):
+    # a canyon plus one building on one side: no symmetry in plan, so a wrong frame shows
+    return (((np.abs(f[..., 0]) > 0.45) & (f[..., 1] < 0.5)) | (f[..., 1] < 0.0)
+            | ((f[..., 0] > 0.2) & (f[..., 2] > 0.3) & (f[..., 1] < 0.8))).astype(np.float64)
+
+
+def test_framed_street_probe_matches_world_aligned_capture(gl_ctx):
+    # A probe of a street at yaw a holds its cube (alpha, so V) along the street's frame: texel
+    # f sees the world direction R^T f.  Its corrected visible sky for world d must be the same as
+    # that of the probe captured world-aligned in the same scene, and both must follow the float64
+    # brute force filter(alpha K') of the world's sky (order 2: D != 0 turns the l = 1 and l = 2
+    # coefficients, the gradient term the moments and tangents).
+    from envcap.scene import load_scene
+
+    n, order = 16, 2
+    lad = rung_ladder(n, "half_octave")
+    spec = load_scene("canyon").sky
+    sky_k = spec.build()
+    sky_n = replace(spec, params=replace(spec.params, sun_elevation_deg=15.0, sun_azimuth_deg=250.0,
+                                         turbidity=5.0)).build()
+    t = cube_geometry.texel_directions(n)
+    kc, nc = sky_k.radiance(t), sky_n.radiance(t)                # world-aligned cubes of the two skies
+    s, dk = sky_delta(sky_sh_coefficients(nc, order), sky_sh_coefficients(kc, order), order)
+    d = _dirs(np.random.default_rng(7), 200)
+    w = lad.level_powers(1)[0]                                    # w = 6
+    k_w, n_w = convolve_exact_dirs(kc, w, d), convolve_exact_dirs(nc, w, d)
+
+    def grad(dd):
+        return convolve_exact_dirs(nc - s * kc, w, dd)
+
+    def corrected(vis, abar, yaw):
+        return sky_visible(vis, d, 0, w, dk, abar, n_w, base_w=s * k_w, gradient_of=grad, yaw_deg=yaw)
+
+    # l = 1 coefficients turn as the vector (x, y, z) = (k_11, k_1-1, k_10) (hand-derived)
+    r30 = plan_rotation(30.0)
+    np.testing.assert_allclose(frame_coefficients(dk, 30.0, order)[[3, 1, 2]], r30 @ dk[[3, 1, 2]], atol=1e-12)
+    # yaw 90: the framed cube is a permutation of the world-aligned one's texels, so the two agree
+    # to float32 (the GL filter) whatever the sky
+    r90 = plan_rotation(90.0)
+    vis_f = prefilter_sky_visibility(_asymmetric_alpha(t), lad, order, ctx=gl_ctx)
+    vis_w = prefilter_sky_visibility(_asymmetric_alpha(t @ r90.T), lad, order, ctx=gl_ctx)
+    abar = np.full(200, 0.4)
+    ref = corrected(vis_w, abar, 0.0)
+    np.testing.assert_allclose(corrected(vis_f, abar, 90.0), ref, atol=1e-5 * np.abs(n_w).max())
+    assert np.abs(corrected(vis_f, abar, 0.0) - ref).max() > 0.05 * np.abs(n_w).max()     # the frames mixed
+    # yaw 30 (texels do not line up): each capture against its own float64 brute force
+    vis_w = prefilter_sky_visibility(_asymmetric_alpha(t @ r30.T), lad, order, ctx=gl_ctx)
+    errs = {}
+    for name, alpha, tex_world, vis, yaw in (("framed", _asymmetric_alpha(t), t @ r30, vis_f, 30.0),
+                                             ("world", _asymmetric_alpha(t @ r30.T), t, vis_w, 0.0),
+                                             ("mixed", _asymmetric_alpha(t), t @ r30, vis_f, 0.0)):
+        q = d @ r30.T if tex_world is not t else d                # the lookup in the cube's own axes
+        ky = luminance(sky_k.radiance(tex_world))[..., None]
+        truth = luminance(convolve_exact_dirs(alpha[..., None] * sky_n.radiance(tex_world), w, q))
+        abar = convolve_exact_dirs(alpha[..., None] * ky, w, q)[:, 0] / convolve_exact_dirs(ky, w, q)[:, 0]
+        term = luminance(n_w) - truth
+        errs[name] = float(np.sqrt(np.mean((luminance(corrected(vis, abar, yaw)) - truth) ** 2) / np.mean(term ** 2)))
+    assert errs["framed"] < 1.1 * errs["world"] + 0.005 and errs["mixed"] > 1.5 * errs["framed"], errs
+    # yaw 0 is the world frame: the same numbers as without the argument; a non-finite yaw is refused
+    np.testing.assert_array_equal(corrected(vis_w, abar, 0.0),
+                                  sky_visible(vis_w, d, 0, w, dk, abar, n_w, base_w=s * k_w, gradient_of=grad))
+    np.testing.assert_array_equal(frame_coefficients(dk, 0.0, order), dk)
+    with pytest.raises(ValueError, match="yaw"):
+        corrected(vis_w, abar, float("nan"))
