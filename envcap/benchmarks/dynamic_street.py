@@ -1,7 +1,7 @@
 """dynamic_street: the dynamic terms (spheres) in a bundled street, against fresh captures.
 
 The bundled ``canyon`` is baked (``--probe-resolution``, ``--spacing``); at ``--positions``
-crowd positions on its street (1.5 m high: at a probe, between probes, off the center line) each
+crowd positions on its street (1.5 m above the ground: at a probe, between probes, off the center line) each
 ring of :data:`envcap.evaluate.dynamic_occluders.DEFAULT_RINGS` is placed around the point, the
 scene with the spheres is captured there as truth, and Eq. 3 shading of the evaluator's materials
 is compared with the probes without (``static``) and with the dynamic terms of each model
@@ -41,6 +41,7 @@ from envcap.evaluate.dynamic_occluders import (
 )
 from envcap.evaluate.dynamic_terms import sphere_buffer
 from envcap.evaluate.predict import Predictor
+from envcap.evaluate.sweep import StreetExtent
 from envcap.gpu.context import create_context
 from envcap.outputs import atomic_output_dir
 from envcap.probeset.bake import bake_probe_set
@@ -66,9 +67,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def crowd_positions(manifest: Any, count: int, spacing: float) -> list[list[float]]:
-    """``count`` (1-6) positions at :data:`HEIGHT_M` near the middle of the first street: at a
-    probe, half a spacing along and 3 m across, a quarter along and 4 m the other way, ..."""
+    """``count`` (1-6) positions :data:`HEIGHT_M` above the ground under them
+    (:meth:`envcap.evaluate.sweep.StreetExtent.ground_at`: a street that follows the terrain stands
+    on its probes' grounds) near the middle of the first street: at a probe, half a spacing along
+    and 3 m across, a quarter along and 4 m the other way, ..."""
     st = manifest.streets[0]
+    extent = StreetExtent.from_manifest(st)
     yaw, oxz = st.frame_yaw_deg, st.frame_origin_xz     # offsets along and across the street, in its frame
     probe = world_to_frame(st.probes[len(st.probes) // 2].position, yaw, oxz)
     along = 0 if st.axis == "x" else 2
@@ -79,7 +83,7 @@ def crowd_positions(manifest: Any, count: int, spacing: float) -> list[list[floa
         p = probe.copy()
         p[along] += fa * spacing
         p[cross] += dc
-        p[1] = HEIGHT_M
+        p[1] = extent.ground_at(float(p[along])) + HEIGHT_M
         out.append([float(v) for v in frame_to_world(p, yaw, oxz)])
     return out
 

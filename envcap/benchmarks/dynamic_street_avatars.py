@@ -25,20 +25,28 @@ from envcap.evaluate.dynamic_avatars import (
     material_summary,
 )
 from envcap.evaluate.predict import Predictor
+from envcap.evaluate.sweep import street_extent
 
 AVATAR_POINT_HEIGHT_M = 1.0
-"""Height of the shading points among the avatars (m above the street's ground: a shoulder among
+"""Height of the shading points among the avatars (m above the ground under them: a shoulder among
 children, a hip among adults; the walker is 1.9 m tall)."""
+
+
+def avatar_points(manifest: Any, street: str, positions: Sequence[Sequence[float]]) -> list[list[float]]:
+    """``positions`` (world m) with their height replaced by :data:`AVATAR_POINT_HEIGHT_M` above the
+    ground under each on ``street`` of the probe-set ``manifest``
+    (:meth:`envcap.evaluate.sweep.StreetExtent.ground_under`: on a street that follows the terrain,
+    the nearest probe's ground plane with its slope)."""
+    extent = street_extent(manifest, street)
+    return [[float(p[0]), extent.ground_under(p) + AVATAR_POINT_HEIGHT_M, float(p[2])] for p in positions]
 
 
 def avatar_section(scene: Any, predictor: Predictor, street: str, positions: Sequence[Sequence[float]], *, ctx: Any,
                    resolution: int, models: Sequence[str]) -> dict[str, Any]:
     """``{"result": JSON-able dict, "md": Markdown}`` of the avatar evaluation at ``positions``
-    (their height replaced by :data:`AVATAR_POINT_HEIGHT_M` above ``street``'s ground)."""
+    (their height replaced by :func:`avatar_points`)."""
     t0 = time.perf_counter()
-    st = next((s for s in scene.streets if s.name == street), None)
-    ground = float(st.ground) if st is not None else 0.0
-    pts = [[float(p[0]), ground + AVATAR_POINT_HEIGHT_M, float(p[2])] for p in positions]
+    pts = avatar_points(predictor.manifest, street, positions)
     rows = evaluate_avatar_crowds(scene, predictor, street, pts, crowds=DEFAULT_CROWDS, ctx=ctx,
                                   resolution=resolution, models=models)
     variants = [f"{s}{'' if m is None else '+' + m}" for s in ("static", "oracle") for m in [None, *models]]

@@ -5,7 +5,7 @@ without and with the dynamic terms of their proxy spheres (the paper's Sections 
 Per position ``x`` and :class:`Crowd` (rings of :class:`AvatarRing`): every avatar (the test
 avatar ``city_scenes/avatars/walker.glb`` unless another is given) is posed at a keyframe of its
 animation by its skin (:func:`envcap.dynamic.gltf_skin.skin`), turned about +Y and stood on the
-street's ground around ``x``; the posed meshes are added to the scene
+ground under its feet around ``x``; the posed meshes are added to the scene
 (:func:`envcap.scene.extra_meshes.with_meshes`) and a cube is captured at ``x`` (the truth).  The
 prediction sees the same avatars as spheres, by the crowd LOD rule
 (:func:`envcap.dynamic.crowd_lod.use_bone_spheres`): an avatar whose one sphere is within
@@ -21,7 +21,7 @@ Results: ``docs/dynamic.md``, "Street evaluation".
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -57,6 +57,7 @@ from envcap.evaluate.shading import (
     shade,
     shading_frames,
 )
+from envcap.evaluate.sweep import street_extent
 from envcap.evaluate.truth import with_alpha
 from envcap.runtime.sampling import composite
 from envcap.runtime.shading import EnvironmentFn
@@ -157,9 +158,11 @@ def pose_avatar(avatar: SkinnedAvatar, proxies: ProxySpheres, root: ArrayLike, y
     return PosedAvatar(mesh, c, r, avatar_sphere(c, r), albedo)
 
 
-def crowd_avatars(crowd: Crowd, point: ArrayLike, ground: float, avatar: SkinnedAvatar,
-                  proxies: ProxySpheres) -> list[PosedAvatar]:
-    """The avatars of ``crowd`` around ``point`` (3,) m, standing on the plane ``y = ground`` m;
+def crowd_avatars(crowd: Crowd, point: ArrayLike, ground: float | Callable[[NDArray[np.float64]], float],
+                  avatar: SkinnedAvatar, proxies: ProxySpheres) -> list[PosedAvatar]:
+    """The avatars of ``crowd`` around ``point`` (3,) m, each standing on the ground under its feet:
+    ``ground(root)`` m for a function of the world point (3,) (e.g.
+    :meth:`envcap.evaluate.sweep.StreetExtent.ground_under`), else the plane ``y = ground`` m;
     albedos alternate over :data:`ALBEDOS`."""
     p = np.asarray(point, np.float64)
     span = 0.0
@@ -171,7 +174,7 @@ def crowd_avatars(crowd: Crowd, point: ArrayLike, ground: float, avatar: Skinned
             az = math.radians(ring.azimuth_deg) + 2 * math.pi * i / ring.count
             d = np.array([math.cos(az), 0.0, math.sin(az)])
             root = p + ring.distance * d
-            root[1] = ground
+            root[1] = ground(root) if callable(ground) else ground
             yaw = math.degrees(math.atan2(-d[0], -d[2])) + ring.turn_deg    # +Z (forward) toward the point
             time = (ring.time + i * KEY_STEP_S) % span if span > 0 else 0.0
             out.append(pose_avatar(avatar, proxies, root, yaw, time, ALBEDOS[len(out) % len(ALBEDOS)]))
@@ -202,8 +205,10 @@ def evaluate_avatar_crowds(scene: Any, predictor: Predictor, street: str, positi
                            avatar_path: Any = None) -> list[dict[str, Any]]:
     """Rows ``{position, xyz, ring, avatars, near, spheres, coverage, sky_hidden, sun, material,
     variant, rel_err}``, one per position x crowd x material x variant (module docstring).
-    ``predictor`` holds the probe set of ``scene``; ``street``: the street the positions are on (its
-    ``ground`` is where the avatars stand); ``resolution``: face size of the fresh captures;
+    ``predictor`` holds the probe set of ``scene``; ``street``: the street the positions are on (the
+    avatars stand on its ground under their feet, :meth:`envcap.evaluate.sweep.StreetExtent.ground_under`:
+    on a street that follows the terrain, the nearest probe's ground plane with its slope);
+    ``resolution``: face size of the fresh captures;
     ``coverage``: upper hemisphere covered by the predicted spheres
     (:func:`envcap.evaluate.dynamic_occluders.sky_coverage`); ``sky_hidden``: visible sky the
     meshes hide in the captures; ``near``: avatars seen as bone spheres; ``spheres``: spheres in
@@ -217,8 +222,7 @@ def evaluate_avatar_crowds(scene: Any, predictor: Predictor, street: str, positi
     sky = scene.sky.build()
     sky_rgba = with_alpha(sky.cube(resolution, include_sun=sun))
     sky_light = upper_sky(sky_rgba)
-    st = next((s for s in scene.streets if s.name == street), None)
-    ground = float(st.ground) if st is not None else 0.0
+    ground = street_extent(predictor.manifest, street).ground_under
     frames, views = shading_frames(predictor.streets[street].along)
     rows: list[dict[str, Any]] = []
 

@@ -7,7 +7,7 @@ KIND ``ring``: the rings of spheres of :data:`envcap.evaluate.dynamic_occluders.
 :data:`envcap.evaluate.dynamic_avatars.DEFAULT_CROWDS`
 (:func:`~envcap.evaluate.dynamic_avatars.evaluate_avatar_crowds`); ``all``: both.  Positions: on
 the probe set's first street, at its middle probe and half way to the next one, on the probe line,
-:data:`RING_HEIGHT_M` (rings) or :data:`AVATAR_HEIGHT_M` (avatars) above the street's ground.
+:data:`RING_HEIGHT_M` (rings) or :data:`AVATAR_HEIGHT_M` (avatars) above the ground under them.
 Truth captures at the evaluation's face size, at most :data:`MAX_RESOLUTION`; sun: the analytic
 variant; models :data:`REPORT_MODELS`.  Tables: per material, the RMS over positions x rings of
 the relative Eq. 3 error, over those hiding >= 10 % of the visible sky and over all, for
@@ -32,6 +32,7 @@ from envcap.evaluate.dynamic_avatars import (
 )
 from envcap.evaluate.dynamic_occluders import DEFAULT_RINGS, evaluate_rings
 from envcap.evaluate.predict import Predictor
+from envcap.evaluate.sweep import StreetExtent
 
 OCCLUDER_KINDS: tuple[str, ...] = ("none", "ring", "avatars", "all")
 """Values of ``envcap evaluate --occluders``."""
@@ -41,21 +42,23 @@ MAX_RESOLUTION = 32
 """Largest face size of the occluder truth captures (12 rings x 2 positions: 26 captures)."""
 RING_HEIGHT_M = 1.5
 AVATAR_HEIGHT_M = 1.0
-"""Heights (m above the street's ground) of the shading points among spheres and among avatars."""
+"""Heights (m above the ground under them) of the shading points among spheres and among avatars."""
 
 
-def occluder_positions(scene: Any, manifest: Any, height: float) -> tuple[str, list[list[float]]]:
+def occluder_positions(manifest: Any, height: float) -> tuple[str, list[list[float]]]:
     """``(street name, positions)``: the first street's middle probe and the point half way to the
-    next probe (the previous one for a single-probe street), ``height`` m above its ground."""
+    next probe (the previous one for a single-probe street), ``height`` m above the ground under
+    each (:meth:`envcap.evaluate.sweep.StreetExtent.ground_under`: on a street that follows the
+    terrain, the nearest probe's ground plane with its slope)."""
     st = manifest.streets[0]
-    ground = next((float(s.ground) for s in scene.streets if s.name == st.name), 0.0)
+    extent = StreetExtent.from_manifest(st)
     k = len(st.probes) // 2
     a = np.asarray(st.probes[k].position, np.float64)
     b = np.asarray(st.probes[k + 1 if k + 1 < len(st.probes) else max(k - 1, 0)].position, np.float64)
     out = []
     for p in (a, 0.5 * (a + b)):
         q = p.copy()
-        q[1] = ground + height
+        q[1] = extent.ground_under(p) + height
         out.append([float(v) for v in q])
     return st.name, out
 
@@ -76,12 +79,12 @@ def evaluate_occluders(scene: Any, probe_set: Any, kind: str, *, resolution: int
     try:
         predictor = Predictor(probe_set, sky=scene.sky.build(), ctx=ctx)
         if kind in ("ring", "all"):
-            street, pts = occluder_positions(scene, probe_set.manifest, RING_HEIGHT_M)
+            street, pts = occluder_positions(probe_set.manifest, RING_HEIGHT_M)
             out["positions"]["ring"] = pts
             out["ring"], _ = evaluate_rings(scene, predictor, street, pts, rings=DEFAULT_RINGS, ctx=ctx, resolution=res,
                                             models=models)
         if kind in ("avatars", "all"):
-            street, pts = occluder_positions(scene, probe_set.manifest, AVATAR_HEIGHT_M)
+            street, pts = occluder_positions(probe_set.manifest, AVATAR_HEIGHT_M)
             out["positions"]["avatars"] = pts
             out["avatars"] = evaluate_avatar_crowds(scene, predictor, street, pts, crowds=DEFAULT_CROWDS, ctx=ctx,
                                                     resolution=res, models=models)

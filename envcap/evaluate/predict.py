@@ -38,11 +38,12 @@ class Predictor:
     :func:`envcap.runtime.sampling.sample_street` returns).  ``x`` (3,) m, ``d`` (M, 3) unit,
     ``w`` (M,) lobe powers (``inf`` = mirror).  With ``sky`` (an :class:`envcap.sky.Sky`) and
     ``ctx``, the sky variant the bake did not store (with or without the sun) is filtered with the
-    probe set's ladder, so that both ``sun=True`` and ``sun=False`` lookups work.
+    probe set's ladder, so that both ``sun=True`` and ``sun=False`` lookups work.  ``manifest``: the
+    probe set's (its streets' grounds, e.g. :class:`envcap.evaluate.sweep.StreetExtent`).
     """
 
     def __init__(self, probe_set: ProbeSet, sky: Any = None, ctx: Any = None, quality: str = "default") -> None:
-        manifest = probe_set.manifest
+        manifest = self.manifest = probe_set.manifest
         self.chains = ProbeChains.from_probe_set(probe_set)
         # The baked sky map holds the sun only when the manifest says so (bake default: no sun,
         # the sun is an analytic light); the other variant is filtered here when a sky is given.

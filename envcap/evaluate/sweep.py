@@ -123,6 +123,11 @@ class StreetExtent:
         i = int(np.argmin(np.abs(self.probe_s - s)))
         return float(self.probe_ground[i] + self.probe_slope[i] * (s - self.probe_s[i]))
 
+    def ground_under(self, x: ArrayLike) -> float:
+        """Ground height (m) under the world point ``x`` (3,): :meth:`ground_at` its along coordinate
+        in the street's frame."""
+        return self.ground_at(float(self.to_frame(np.asarray(x, np.float64))[self.along]))
+
     def contains(self, x: NDArray[np.float64]) -> bool:
         """Whether the world point ``x`` (3,) lies between the facades and the street's ends (any height)."""
         f = self.to_frame(x)
@@ -137,6 +142,14 @@ class StreetExtent:
                             float(f[self.cross] - self.center), float(np.min(np.abs(self.probe_s - f[self.along]))),
                             float(x[1] - self.ground_at(f[self.along]) if height is None else height),
                             any(o.contains(x) for o in streets if o.name != self.name), self.yaw_deg)
+
+
+def street_extent(manifest: Manifest, name: str) -> StreetExtent:
+    """The :class:`StreetExtent` of the street ``name`` of a probe-set ``manifest``."""
+    for st in manifest.streets:
+        if st.name == name:
+            return StreetExtent.from_manifest(st)
+    raise ValueError(f"probe set has no street named {name!r}")
 
 
 def _extents(manifest: Manifest) -> list[StreetExtent]:
