@@ -25,7 +25,7 @@ from __future__ import annotations
 import itertools
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -34,7 +34,7 @@ from envcap.capture.outputs import CaptureSet, probe_inside_geometry
 from envcap.capture.renderer import CubeCapture
 from envcap.core.checks import positive_int
 from envcap.core.lobes import Z_OF_W_RULE, lobe_ladder
-from envcap.core.rungs import LADDER_MODES
+from envcap.core.rungs import LADDER_MODES, RUNGS_PER_LEVEL
 from envcap.gpu.context import create_context
 from envcap.prefilter import prefilter_chain, prefilter_many
 from envcap.prefilter.rungs import rung_textures
@@ -106,10 +106,21 @@ def _capture(cap: CubeCapture, positions: np.ndarray, yaws: np.ndarray, report: 
     if not whole:
         return parts[0]
     out = whole[0]
-    out.passes_run, out.pass_times_s = parts[0].passes_run, dict(parts[0].pass_times_s)
-    for part in parts[1:]:  # the per-set passes ran once, render and readback per probe
-        for k in ("render", "readback"):
-            out.pass_times_s[k] = out.pass_times_s.get(k, 0.0) + part.pass_times_s.get(k, 0.0) - cap.pass_times_s.get(k, 0.0)
+    out.passes_run = parts[0].passes_run
+    out.pass_times_s = merged_pass_times(cap.pass_times_s, [part.pass_times_s for part in parts])
+    return out
+
+
+def merged_pass_times(per_set: Mapping[str, float], parts: Sequence[Mapping[str, float]]) -> dict[str, float]:
+    """Pass seconds of one capture set captured in ``parts`` (the ``pass_times_s`` of sets of one
+    :class:`CubeCapture`, e.g. one per yaw group): each part holds the capture's per-set passes
+    ``per_set`` (run once, before any probe) plus its own per-probe seconds (``render``,
+    ``readback``, and the effects' per-probe passes, e.g. shadow cascades redrawn under
+    ``shadow_map``); the sum counts ``per_set`` once and every part's per-probe seconds."""
+    out = dict(parts[0])
+    for part in parts[1:]:
+        for k, v in part.items():
+            out[k] = out.get(k, 0.0) + (v - per_set.get(k, 0.0))
     return out
 
 
@@ -182,7 +193,8 @@ def bake_probe_set(
     if ladder_mode not in LADDER_MODES or (ladder_mode != "paper" and not filter_levels):
         raise ValueError(f"ladder mode (--ladder) must be one of {list(LADDER_MODES)} (a rung ladder needs filtered levels), got {ladder_mode!r}")
     count = sum(probe_count(st, spacing) for st in scene.streets)  # validates the spacing
-    estimate = estimate_bake(count, resolution, filter_levels=filter_levels)
+    estimate = estimate_bake(count, resolution, filter_levels=filter_levels,
+                             rungs_per_level=RUNGS_PER_LEVEL.get(ladder_mode, 0))
     check_bake_cost(estimate, sum(st.length for st in scene.streets), spacing, max_probes)
     terrain = GroundHeights(scene.mesh) if any(st.follow_terrain for st in scene.streets) else None
     placements = [place_probes(st, spacing=spacing, height=height, max_probes=max_probes, ground_at=terrain)
