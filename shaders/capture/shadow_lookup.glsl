@@ -13,22 +13,19 @@ uniform float shadow_normal_offset; // meters
 uniform float shadow_bias_const;    // depth units [0, 1]
 uniform float shadow_bias_slope;    // depth units per unit tan(angle of incidence)
 uniform float shadow_texel;         // 1 / resolution
-#ifdef SUN_SHADOW_CASCADES
-uniform int shadow_cascades;             // 0: single map; K >= 2: cascades in an atlas
-uniform vec4 shadow_cascade_uv[8];       // cascade uv = p.xy * xy + zw (p.xy: light_clip's [0, 1] window)
-uniform vec4 shadow_cascade_cell[8];     // xy: the cell's first atlas texel, z: its side in texels
-uniform vec4 shadow_cascade_bias[8];     // x: normal offset (m), y: depth bias, z: slope bias (depth units)
-uniform vec2 shadow_atlas_texel;         // 1 / atlas size in texels
 
-// 3x3 PCF of bilinear 2x2 comparisons at x (atlas texels, texel centers at +0.5), as the 4x4
-// texel footprint of 4 gathers (weights per axis 1-f, 1, 1, f; see sun_visibility).
-float shadow_pcf_atlas(vec2 x, float ref) {
+// 3x3 PCF of bilinear 2x2 comparisons at offsets of one texel around x (map texels, texel
+// centers at +0.5; texel: 1 / map size), evaluated as its 4x4 texel footprint: per axis the
+// texels b-1, b, b+1, b+2 (b = floor(x), f = fract(x)) carry weights 1-f, 1, 1, f (sum 3), so 4
+// gathers of compare results replace 9 filtered taps (docs/capture.md).
+float shadow_pcf(vec2 x, float ref, vec2 texel) {
     vec2 b = floor(x);
     vec2 f = x - b;
-    vec4 g00 = textureGather(shadow_map, (b + vec2(0.0, 0.0)) * shadow_atlas_texel, ref);
-    vec4 g10 = textureGather(shadow_map, (b + vec2(2.0, 0.0)) * shadow_atlas_texel, ref);
-    vec4 g01 = textureGather(shadow_map, (b + vec2(0.0, 2.0)) * shadow_atlas_texel, ref);
-    vec4 g11 = textureGather(shadow_map, (b + vec2(2.0, 2.0)) * shadow_atlas_texel, ref);
+    vec4 g00 = textureGather(shadow_map, (b + vec2(0.0, 0.0)) * texel, ref);  // texels b-1, b
+    vec4 g10 = textureGather(shadow_map, (b + vec2(2.0, 0.0)) * texel, ref);  // x: b+1, b+2
+    vec4 g01 = textureGather(shadow_map, (b + vec2(0.0, 2.0)) * texel, ref);  // y: b+1, b+2
+    vec4 g11 = textureGather(shadow_map, (b + vec2(2.0, 2.0)) * texel, ref);
+    // gather order: (x0, y1), (x1, y1), (x1, y0), (x0, y0); weights per column / row:
     vec4 wx = vec4(1.0 - f.x, 1.0, 1.0, f.x);
     vec4 wy = vec4(1.0 - f.y, 1.0, 1.0, f.y);
     float v = wy.x * (wx.x * g00.w + wx.y * g00.z + wx.z * g10.w + wx.w * g10.z)
@@ -37,6 +34,13 @@ float shadow_pcf_atlas(vec2 x, float ref) {
             + wy.w * (wx.x * g01.x + wx.y * g01.y + wx.z * g11.x + wx.w * g11.y);
     return v / 9.0;
 }
+
+#ifdef SUN_SHADOW_CASCADES
+uniform int shadow_cascades;             // 0: single map; K >= 2: cascades in an atlas
+uniform vec4 shadow_cascade_uv[8];       // cascade uv = p.xy * xy + zw (p.xy: light_clip's [0, 1] window)
+uniform vec4 shadow_cascade_cell[8];     // xy: the cell's first atlas texel, z: its side in texels
+uniform vec4 shadow_cascade_bias[8];     // x: normal offset (m), y: depth bias, z: slope bias (depth units)
+uniform vec2 shadow_atlas_texel;         // 1 / atlas size in texels
 
 // Cascades: the finest one whose 4x4 PCF footprint lies inside its cell (cell texels 1.5 ..
 // side - 1.5); the last (whole-map) cascade is read like the single map (outside: lit).
@@ -54,7 +58,7 @@ float sun_visibility_cascaded(vec3 local, vec3 n, float cos_l) {
         }
         if (p.z > 1.0) return 1.0;
         float ref = p.z - bias.y - bias.z * min(tan_l, 10.0);
-        return shadow_pcf_atlas(cell.xy + x - 0.5, ref);
+        return shadow_pcf(cell.xy + x - 0.5, ref, shadow_atlas_texel);   // atlas texels
     }
     return 1.0;
 }
@@ -69,25 +73,7 @@ float sun_visibility(vec3 local, vec3 n, float cos_l) {
     if (any(lessThan(p.xy, vec2(0.0))) || any(greaterThan(p.xy, vec2(1.0))) || p.z > 1.0) return 1.0;
     float tan_l = sqrt(max(1.0 - cos_l * cos_l, 0.0)) / max(cos_l, 1e-3);
     float ref = p.z - shadow_bias_const - shadow_bias_slope * min(tan_l, 10.0);
-    // 3x3 PCF of bilinear 2x2 comparisons at offsets of one texel, evaluated as its 4x4 texel
-    // footprint: per axis the texels b-1, b, b+1, b+2 (b = floor(x), x = p * res - 0.5, f = fract(x))
-    // carry weights 1-f, 1, 1, f (sum 3), so 4 gathers of compare results replace 9 filtered taps
-    // (docs/capture.md).
-    vec2 x = p.xy / shadow_texel - 0.5;
-    vec2 b = floor(x);
-    vec2 f = x - b;
-    vec4 g00 = textureGather(shadow_map, (b + vec2(0.0, 0.0)) * shadow_texel, ref);  // texels b-1, b
-    vec4 g10 = textureGather(shadow_map, (b + vec2(2.0, 0.0)) * shadow_texel, ref);  // x: b+1, b+2
-    vec4 g01 = textureGather(shadow_map, (b + vec2(0.0, 2.0)) * shadow_texel, ref);  // y: b+1, b+2
-    vec4 g11 = textureGather(shadow_map, (b + vec2(2.0, 2.0)) * shadow_texel, ref);
-    // gather order: (x0, y1), (x1, y1), (x1, y0), (x0, y0); weights per column / row:
-    vec4 wx = vec4(1.0 - f.x, 1.0, 1.0, f.x);
-    vec4 wy = vec4(1.0 - f.y, 1.0, 1.0, f.y);
-    float v = wy.x * (wx.x * g00.w + wx.y * g00.z + wx.z * g10.w + wx.w * g10.z)
-            + wy.y * (wx.x * g00.x + wx.y * g00.y + wx.z * g10.x + wx.w * g10.y)
-            + wy.z * (wx.x * g01.w + wx.y * g01.z + wx.z * g11.w + wx.w * g11.z)
-            + wy.w * (wx.x * g01.x + wx.y * g01.y + wx.z * g11.x + wx.w * g11.y);
-    return v / 9.0;
+    return shadow_pcf(p.xy / shadow_texel - 0.5, ref, vec2(shadow_texel));
 }
 
 #endif  // ENVCAP_SHADOW_LOOKUP_GLSL

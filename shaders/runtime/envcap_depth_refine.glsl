@@ -45,7 +45,6 @@ vec3 envcap_depth_towards(vec3 o, vec3 d, float t, out float hl)
 // facade_max, ground0, slope).  Total: finite for finite inputs.
 vec4 envcap_depth_refine(ENVCAP_DISTANCE_SAMPLER dist, float layer, vec3 x, vec3 d, vec3 p, vec4 planes, int along)
 {
-    int cross = 2 - along;
     vec3 xc = envcap_clamp_to_street(x, planes, along);
     vec2 te = envcap_plane_exits(xc, d, planes, along);
     float t = min(min(te.x, te.y), ENVCAP_FAR);
@@ -75,14 +74,7 @@ vec4 envcap_depth_refine(ENVCAP_DISTANCE_SAMPLER dist, float layer, vec3 x, vec3
     vec3 r = envcap_depth_towards(o, d, t, dp);
     if (!(dp > ENVCAP_MIN_DIST)) return vec4(d, lo);
     float ratio = min(max(dp / max(t, ENVCAP_MIN_DIST), 1.0 / ENVCAP_MAX_RATIO), ENVCAP_MAX_RATIO);
-    vec3 n = vec3(0.0);                  // the normal of the plane the ray left through
-    if (ground) {
-        float gl = sqrt(1.0 + planes.w * planes.w);
-        n.y = 1.0 / gl;
-        n[along] = -planes.w / gl;
-    } else {
-        n[cross] = 1.0;
-    }
+    vec3 n = envcap_exit_normal(ground, planes, along);   // the plane the ray left through
     float ca = max(abs(dot(n, d)), ENVCAP_MIN_COS);
     float cb = max(abs(dot(n, r)), ENVCAP_MIN_COS);
     return vec4(r, min(max(ratio * ratio * (ca / cb), lo), ENVCAP_MAX_RATIO * ENVCAP_MAX_RATIO));

@@ -140,13 +140,28 @@ const float ENVCAP_MIN_COS = 1.0e-4;
 // Offset of the four sigma rays of envcap_sigma_footprint, in lobe RMS tangents sqrt(2/(w+3)).
 const float ENVCAP_SPREAD = 1.3;
 
+// Unit normal of the plane a ray leaves the street through: the ground's (tilted by its slope
+// planes.w along the street: (-w, 1) / sqrt(1 + w^2) in (along, y)) when `ground`, else the
+// facades' (+cross axis; its sign does not matter to the |cos| that use it).
+vec3 envcap_exit_normal(bool ground, vec4 planes, int along)
+{
+    vec3 n = vec3(0.0);
+    if (ground) {
+        float gl = sqrt(1.0 + planes.w * planes.w);
+        n.y = 1.0 / gl;
+        n[along] = -planes.w / gl;
+    } else {
+        n[2 - along] = 1.0;
+    }
+    return n;
+}
+
 // Three-plane parallax with the oblique (area-matched) mip shift.  Returns vec4(r, q): r as
 // envcap_parallax, q = ratio^2 cos(alpha) / cos(beta) the power multiplier (w' = w q), alpha and
 // beta the angles between the hit plane's normal and d, r.  q clamped to [1/R^2, R^2],
 // R = ENVCAP_MAX_RATIO.  Fallbacks as envcap_parallax, with q = ratio^2.
 vec4 envcap_parallax_oblique(vec3 x, vec3 d, vec3 p, vec4 planes, int along)
 {
-    int cross = 2 - along;
     vec3 xc = envcap_clamp_to_street(x, planes, along);
     vec2 te = envcap_plane_exits(xc, d, planes, along);
     float tc = te.x, tg = te.y;
@@ -157,15 +172,7 @@ vec4 envcap_parallax_oblique(vec3 x, vec3 d, vec3 p, vec4 planes, int along)
     if (!(dp > ENVCAP_MIN_DIST)) return vec4(d, 1.0 / (ENVCAP_MAX_RATIO * ENVCAP_MAX_RATIO));
     r = r / dp;
     float ratio = min(max(dp / max(t, ENVCAP_MIN_DIST), 1.0 / ENVCAP_MAX_RATIO), ENVCAP_MAX_RATIO);
-    bool ground = tg < tc;
-    vec3 n = vec3(0.0);                  // the hit plane's unit normal: the ground's or the facades'
-    if (ground) {
-        float gl = sqrt(1.0 + planes.w * planes.w);
-        n.y = 1.0 / gl;
-        n[along] = -planes.w / gl;
-    } else {
-        n[cross] = 1.0;
-    }
+    vec3 n = envcap_exit_normal(tg < tc, planes, along);
     float ca = max(abs(dot(n, d)), ENVCAP_MIN_COS);
     float cb = max(abs(dot(n, r)), ENVCAP_MIN_COS);
     float q = ratio * ratio * (ca / cb);
