@@ -36,6 +36,7 @@ probes and the sky only, stays ``None``).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -82,14 +83,20 @@ def fetch_inverse(inv: NDArray, u: NDArray, layer: ArrayLike) -> NDArray[np.floa
 
 
 def depth_refine(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, along: int, inv: NDArray,
-                 layer: ArrayLike, steps: int = 2, tol: float = 0.1) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+                 layer: ArrayLike, steps: int = 2, tol: float = 0.1,
+                 level_bias: float = 1.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """``(r, q)``: unit direction ``(M, 3)`` from the probe to the (refined) hit and the power
     multiplier ``(M,)`` (``w' = w q``), for shading points ``x`` (3,) or (M, 3), unit directions
     ``d`` (M, 3), probe positions ``p`` and ``planes`` (3,) / (M, 3) (or 4 columns with a ground
     slope), ``inv`` :func:`inverse_distance` ``(L, 6, N, N)``, ``layer`` (M,) or scalar.  Module
-    docstring: the steps.  Every output is finite for finite inputs."""
+    docstring: the steps.  ``level_bias``: a finite factor > 0 on every ``q`` (``w' = w q
+    level_bias``; > 1 reads a sharper level); 1 (the default, the GLSL's) leaves ``q`` bit for bit.
+    Only a calibration knob (``envcap bench level_bias``, docs/evaluation.md): the runtime method
+    does not set it.  Every output is finite for finite inputs."""
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps}")
+    if not (math.isfinite(level_bias) and level_bias > 0):
+        raise ValueError(f"level_bias must be a finite number > 0, got {level_bias}")
     d = np.asarray(d, np.float64).reshape(-1, 3)
     m = d.shape[0]
     x = np.broadcast_to(np.asarray(x, np.float64).reshape(-1, 3), (m, 3))
@@ -133,7 +140,7 @@ def depth_refine(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, al
     lo, hi = 1.0 / (MAX_RATIO * MAX_RATIO), MAX_RATIO * MAX_RATIO
     q = np.clip(ratio * ratio * (ca / cb), lo, hi)
     q = np.where(ok, q, np.where(hit, lo, 1.0))
-    return r, q
+    return r, (q if level_bias == 1.0 else q * level_bias)
 
 
 _inverse_cache: dict[int, tuple[Any, NDArray[np.float32]]] = {}
