@@ -47,6 +47,13 @@ _BATCH_B = 182.0
 _UNFILTERED_B = 60.0          # filter_levels=False: capture, its float32 copy, the write
 _SKY_B = 260.0                # per sky texel (6 x N^2): the RGB and RGBA cubes and their filter
 _PREFILTER_BATCH_BYTES = 64 << 20  # the default ``batch_bytes`` of envcap.prefilter.prefilter_many
+# A rung ladder (ladder_mode != "paper") adds per rung layer (R per level) and level-0 texel: its
+# float32 RGBA levels down to 8^2 kept (16 B x 4/3) and, per chunk of the fast rung filter
+# (envcap.prefilter.rungs.CHUNK_BYTES of level-0 RGBA float32), the chunk's composed chain and GL
+# buffers (33 B, fitted: canyon 64^2 x 50 probes, 128^2 x 20: 253 and 418 MiB over the paper bake, model 255 and 408).
+_RUNG_KEPT_B = 16.0 * 4.0 / 3.0
+_RUNG_CHUNK_B = 33.0
+_RUNG_CHUNK_TEXELS = (64 << 20) / 16.0
 _GL_BYTES = 64 << 20          # a fresh GL context and the capture target
 
 # Seconds at llvmpipe rates (2 CPU cores): per probe (draw setup, files) and per texel.
@@ -106,9 +113,10 @@ class BakeEstimate:
                 f"roughly {format_seconds(self.seconds)} at llvmpipe (CPU) rates, less on a GPU")
 
 
-def estimate_bake(probes: float, resolution: int, *, filter_levels: bool = True) -> BakeEstimate:
+def estimate_bake(probes: float, resolution: int, *, filter_levels: bool = True, rungs_per_level: int = 0) -> BakeEstimate:
     """The cost model of a bake of ``probes`` probes at ``resolution`` texels per face
-    (see the module docstring); every quantity is a float (``inf`` when past counting)."""
+    (see the module docstring); every quantity is a float (``inf`` when past counting).
+    ``rungs_per_level``: ``R`` of a rung ladder (``envcap capture --ladder``; 0: the paper's chain)."""
     n = float(resolution) if resolution < 1 << 1000 else math.inf
     face = 6.0 * _square(n)
     texels = probes * face
@@ -120,6 +128,8 @@ def estimate_bake(probes: float, resolution: int, *, filter_levels: bool = True)
     else:
         peak = _UNFILTERED_B * texels
         seconds = texels * (_CAPTURE_TEXEL_S + _WRITE_TEXEL_S)
+    if filter_levels and rungs_per_level > 0:
+        peak += rungs_per_level * (_RUNG_KEPT_B * (texels + face) + _RUNG_CHUNK_B * min(texels, _RUNG_CHUNK_TEXELS))
     peak += _SKY_B * face + _GL_BYTES
     seconds += probes * _PROBE_S + face * _SKY_TEXEL_S
     return BakeEstimate(probes, int(resolution), texels, peak, seconds)
