@@ -43,6 +43,7 @@ from envcap.probeset.city_index import INDEX_FILE, StreetMapInfo, build_city_ind
 from envcap.probeset.manifest import Street, read_manifest
 from envcap.probeset.planes import Planes
 from envcap.runtime.street_map import street_map
+from envcap.scene.model import Street as SceneStreet
 
 KIND = "city-probe-set"
 MAP_FILE = "street_map.ktx2"
@@ -91,6 +92,14 @@ def _remove_stale(city: Path, tasks: Iterable[ShardTask]) -> None:
             remove_path(entry)
 
 
+def _nominal(st: SceneStreet) -> Street:
+    """A scene street as its manifest street before the bake (nominal planes, no probes), in its
+    frame when it has one."""
+    frame = dict(yaw_deg=st.yaw_deg, origin_xz=st.origin_xz) if st.framed else {}
+    return Street(st.name, st.axis, st.start, st.end, st.center_line, Planes(st.facade_min, st.facade_max, st.ground),
+                  (), **frame)
+
+
 def finish_city(city: Path, tasks: list[ShardTask], digest: str, map_cell: float) -> None:
     """Write the street map and the index of the (complete) shards of ``tasks``."""
     manifests = [read_manifest(city / t.path / MANIFEST_FILE) for t in tasks]
@@ -134,8 +143,7 @@ def bake_city(source: SceneSource, out: str | os.PathLike[str], settings: BakeSe
     digest = scene_hash(scene)
     code = code_digest()
     tasks = plan_shards(scene, settings, int(budget_mb * 1e6), digest, code)
-    street_map([Street(st.name, st.axis, st.start, st.end, st.center_line,  # the map's cell fits every street
-                       Planes(st.facade_min, st.facade_max, st.ground), ()) for st in scene.streets], map_cell)
+    street_map([_nominal(st) for st in scene.streets], map_cell)   # the map's cell fits every street
     with claim_output_dir(out, kind=KIND, inputs=inputs, force=force) as claim:
         city = claim.path
         city.mkdir(exist_ok=True)

@@ -9,7 +9,9 @@ makes one shard per street.  Scene order keeps the plan stable when streets are 
 Keys (:func:`shard_key`): SHA-256 over the scene's content (:func:`scene_hash`: mesh arrays,
 streets, sky, effects, the bytes of files the sky reads), the shard's streets, the bake settings
 (:class:`BakeSettings`, output writers included), the envcap version and its code
-(:func:`code_digest`: every module and shader).  A shard directory is
+(:func:`code_digest`: every module and shader).  Streets enter the scene hash and the key whole,
+frame included (``yaw_deg``, ``origin_xz`` of a street at any angle): a turned or moved street is
+another shard, and its frame reaches the probe-set bake unchanged.  A shard directory is
 named by its key, so a finished shard is found again by a rerun with the same inputs and never
 mistaken for one of other inputs.
 """

@@ -14,23 +14,30 @@ streets.  Layers are global over the city in shard order: shard ``s`` holds city
 so its layer ``l`` is layer ``l - shard.layers[0]`` of its shard's ``probes.ktx2``.  Every shard
 shares the index's resolution, levels, lobe ladder, probe height and spacing, sky and scene.
 
-Street frames: ``frame_origin`` (3,) m is the world origin of the street's local frame, the one
-:func:`envcap.runtime.street.street_origin` gives (its probes' box centre rounded to whole km):
-an engine subtracts it in float64 and uploads street-local float32 coordinates.  ``bounds``
-``(x_min, x_max, z_min, z_max)`` (m) is the street's footprint (ends and nominal facades), the
-region the street map gives the street.
+Street frames (issue 10: streets at any angle).  A street with its own frame carries, as in
+its shard's manifest, ``yaw_deg`` and ``origin_xz`` (world -> frame is ``R(yaw) (p - (ox, 0,
+oz))``, :mod:`envcap.core.street_frame`); it has axis "x" and its ``start``/``end``/``center``
+and planes are frame coordinates.  Both keys are absent for a street in the world frame, so an
+index of axis-aligned streets has the bytes it had before they existed (still version 1).
+``frame_origin`` (3,) m is the origin of the street's *local* float32 coordinates, in the
+street's frame coordinates (the world's for a street without a frame): the box centre of its
+probes' frame positions rounded to whole km, what :func:`envcap.runtime.street.street_origin`
+gives; an engine takes ``R (p - O) - frame_origin`` in float64 and uploads float32.  ``bounds``
+``(x_min, x_max, z_min, z_max)`` (m) is the WORLD box of the street's rectangle (ends and
+nominal facades, turned by its yaw), the region in which the street map may give the street.
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from envcap import __version__
+from envcap.core.street_frame import frame_to_world, world_to_frame
 from envcap.probeset.float32_range import check_number_ranges
 from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
 from envcap.probeset.manifest import Files, Level, LobeTable, Manifest, SceneInfo, SkyInfo, Street, Timings
@@ -41,13 +48,16 @@ from envcap.scene.model import local_origin
 FORMAT = "envcap-city"
 VERSION = 1
 INDEX_FILE = "city.json"
+_OMIT = {"json": "omit_none"}
 
 
 @dataclass(frozen=True)
 class CityStreet:
-    """One street of the city: its description (as in a shard's manifest), footprint ``bounds``
-    (x_min, x_max, z_min, z_max) m, local frame origin (3,) m, its shard (index into
-    ``CityIndex.shards``) and its city layers ``(first, count)``."""
+    """One street of the city: its description (as in a shard's manifest), world box ``bounds``
+    (x_min, x_max, z_min, z_max) m, local origin ``frame_origin`` (3,) m (frame coordinates), its
+    shard (index into ``CityIndex.shards``), its city layers ``(first, count)`` and, for a street
+    with its own frame, ``yaw_deg`` and ``origin_xz`` (absent from the JSON when ``None``; see
+    the module docstring)."""
 
     name: str
     axis: str
@@ -59,6 +69,23 @@ class CityStreet:
     frame_origin: tuple[float, float, float]
     shard: int
     layers: tuple[int, int]
+    yaw_deg: float | None = field(default=None, metadata=_OMIT)
+    origin_xz: tuple[float, float] | None = field(default=None, metadata=_OMIT)
+
+    @property
+    def frame_yaw_deg(self) -> float:
+        """``yaw_deg`` as a number (0.0 when ``None``: the world frame)."""
+        return 0.0 if self.yaw_deg is None else float(self.yaw_deg)
+
+    @property
+    def frame_origin_xz(self) -> tuple[float, float]:
+        """``origin_xz`` as numbers ((0.0, 0.0) when ``None``)."""
+        return (0.0, 0.0) if self.origin_xz is None else (float(self.origin_xz[0]), float(self.origin_xz[1]))
+
+    @property
+    def framed(self) -> bool:
+        """True when the street has its own frame (a yaw or frame origin other than 0)."""
+        return self.frame_yaw_deg != 0.0 or self.frame_origin_xz != (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -165,6 +192,8 @@ def check_city_index(ix: CityIndex, where: str = INDEX_FILE) -> None:
         names.add(st.name)
         if st.axis not in ("x", "z"):
             raise ManifestError(f"{sw}.axis: must be 'x' or 'z', got {st.axis!r}")
+        if st.framed and st.axis != "x":
+            raise ManifestError(f"{sw}.axis: a street with yaw_deg/origin_xz runs along its frame's x, got {st.axis!r}")
         if not (st.end > st.start and st.planes.facade_max > st.planes.facade_min):
             raise ManifestError(f"{sw}: needs start < end and facade_min < facade_max")
         if not 0 <= st.shard < len(ix.shards):
@@ -193,17 +222,27 @@ def city_index_text(ix: CityIndex) -> str:
 
 
 def street_frame_origin(st: Street) -> tuple[float, float, float]:
-    """The world origin (m) of a street's local frame: its probes' box centre rounded to whole
-    kilometres (:func:`envcap.scene.model.local_origin`, as the runtime's ``street_origin``)."""
+    """The origin (m) of a street's local float32 coordinates, in its frame coordinates (the
+    world's for a street without a frame): its probes' frame-coordinate box centre rounded to
+    whole kilometres (:func:`envcap.scene.model.local_origin`, as the runtime's
+    ``street_origin`` of the street's frame positions)."""
     pos = np.array([p.position for p in st.probes], dtype=np.float64).reshape(-1, 3)
+    if st.framed:
+        pos = world_to_frame(pos, st.frame_yaw_deg, st.frame_origin_xz)
     o = local_origin(pos.min(axis=0), pos.max(axis=0))
     return float(o[0]), float(o[1]), float(o[2])
 
 
-def street_bounds(st: Street) -> tuple[float, float, float, float]:
-    """``(x_min, x_max, z_min, z_max)`` (m): a street's ends and nominal facades."""
+def street_bounds(st: Street | CityStreet) -> tuple[float, float, float, float]:
+    """``(x_min, x_max, z_min, z_max)`` (m): the world box of a street's rectangle (its ends and
+    nominal facades; for a street with its own frame, the rectangle's four corners taken to the
+    world by :func:`envcap.core.street_frame.frame_to_world`, float64)."""
     lo, hi = st.planes.facade_min, st.planes.facade_max
-    return (st.start, st.end, lo, hi) if st.axis == "x" else (lo, hi, st.start, st.end)
+    if not st.framed:
+        return (st.start, st.end, lo, hi) if st.axis == "x" else (lo, hi, st.start, st.end)
+    corners = np.array([[st.start, 0.0, lo], [st.end, 0.0, lo], [st.end, 0.0, hi], [st.start, 0.0, hi]])
+    w = frame_to_world(corners, st.frame_yaw_deg, st.frame_origin_xz)
+    return float(w[:, 0].min()), float(w[:, 0].max()), float(w[:, 2].min()), float(w[:, 2].max())
 
 
 def build_city_index(manifests: Sequence[Manifest], paths: Sequence[str], keys: Sequence[str], scene_hash: str,
@@ -217,7 +256,8 @@ def build_city_index(manifests: Sequence[Manifest], paths: Sequence[str], keys: 
         for st in m.streets:
             layers = sorted(p.layer for p in st.probes)
             streets.append(CityStreet(st.name, st.axis, st.start, st.end, st.center, st.planes, street_bounds(st),
-                                      street_frame_origin(st), s, (first + layers[0], len(layers))))
+                                      street_frame_origin(st), s, (first + layers[0], len(layers)),
+                                      st.yaw_deg, st.origin_xz))
         shards.append(Shard(path, key, tuple(st.name for st in m.streets), (first, m.layer_count)))
         first += m.layer_count
     return CityIndex(scene=m0.scene or SceneInfo("", "", 0), scene_hash=scene_hash, resolution=m0.resolution,

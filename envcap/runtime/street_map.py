@@ -1,5 +1,6 @@
 """A top-down street-ID map: which street a world position (x, z) is on, for a crowd walking
-across a city (issue 11, item 3); the numpy twin of ``shaders/runtime/envcap_street_map.glsl``.
+across a city (issue 11, item 3), and where in that street's frame; the numpy twin of
+``shaders/runtime/envcap_street_map.glsl``.
 
 The map is a grid of ``uint16`` street ids (an R16UI texture on the GPU), ``ids[row, column]``
 with columns along world +x and rows along world +z: cell ``(i, j)`` covers
@@ -7,10 +8,14 @@ with columns along world +x and rows along world +z: cell ``(i, j)`` covers
 street's index in the probe set's manifest plus 1; 0 means no street.
 
 Rasterization (:func:`street_map`): a cell belongs to a street when the cell's centre lies in the
-street's closed footprint, ``start <= along <= end`` and ``facade_min <= across <= facade_max``
-(the street's nominal planes).  Where footprints overlap (crossings) the cell goes to the street
-whose centre line (``Street.center``) is nearest to the cell centre; ties go to the lower index.
-A street that covers no cell centre (narrower than a cell) is an error, never dropped silently.
+street's closed rectangle *in the street's frame*: ``p_f = world_to_frame(centre, yaw_deg,
+origin_xz)`` (:mod:`envcap.core.street_frame`, float64; the world itself for a street without a
+frame) has ``start <= along <= end`` and ``facade_min <= across <= facade_max`` (the street's
+nominal planes; along = frame x for a street at any angle).  A centre exactly on an edge is in.
+Where rectangles overlap (crossings, at any angle) the cell goes to the street whose centre line
+(``Street.center``, in its frame) is nearest to the cell centre (perpendicular distance
+``|across - center|``); exact ties go to the lower index.  A street that covers no cell centre
+(narrower than a cell) is an error, never dropped silently.
 
 Lookup (:meth:`StreetMap.lookup`, GLSL ``envcap_street_map_id``), in float32 like the GPU:
 ``u = floor((p - origin) * inv_cell)`` with ``p = (x, z)``, ``origin`` and ``inv_cell = 1 / cell``
@@ -21,6 +26,21 @@ cell sizes the rounding of ``inv_cell`` may move a boundary by one float32 step,
 GLSL and numpy.  Positions are float32 in the map's frame: keep ``origin`` near them (a city
 in projected coordinates passes positions relative to a local origin, as the runtime's
 street-local frames do).
+
+Locate (:class:`StreetTable`, GLSL ``envcap_city_locate``): per id, the street's frame and probe
+range, so that one lookup gives the street, the position in its street-local frame and its probe
+layers.  Row ``id`` (0 = no street) holds ``(cos yaw, sin yaw)``, a translation ``t`` (3,) and
+``(shard, first layer in the shard, first layer in the city, count)``.  With ``d = (x, z) -
+origin`` (float32, as for the cell) the street-local position is, in float32::
+
+    local = (c d.x + s d.y + t.x,  y + t.y,  c d.y - s d.x + t.z)
+
+where ``t = R (M - O) - L`` was computed in float64 and rounded once (``M`` = the map origin as
+float32, ``O`` = the street's frame origin ``(ox, 0, oz)``, ``L`` = its local origin in frame
+coordinates, the runtime's ``street_origin``): ``local = R (p - O) - L``, what
+``StreetUniforms.to_local`` gives for the street's uniforms.  Row 0 (no street, the sky-only
+fallback) is the identity with ``t = 0``: ``local = (x - origin.x, y, z - origin.z)`` and range
+``(0, 0, 0, 0)``.
 """
 
 from __future__ import annotations
@@ -32,9 +52,12 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from envcap.core.street_frame import world_to_frame
+from envcap.probeset.city_index import street_bounds
 from envcap.probeset.manifest import Street
 
 MAX_STREETS = 65535      # uint16 ids, 0 reserved for "no street"
+TABLE_WIDTH = 1024       # columns of the locate tables' textures (GL ES 3.0 guarantees 2048)
 
 
 @dataclass(frozen=True)
@@ -88,24 +111,20 @@ class StreetMap:
         return out
 
 
-def _footprint(st: Street) -> tuple[float, float, float, float]:
-    """``(x_min, x_max, z_min, z_max)`` of a street's closed footprint (m)."""
-    lo, hi = st.planes.facade_min, st.planes.facade_max
-    return (st.start, st.end, lo, hi) if st.axis == "x" else (lo, hi, st.start, st.end)
-
-
 def street_map(streets: Sequence[Street], cell: float, *, origin: tuple[float, float] | None = None,
                size: tuple[int, int] | None = None) -> StreetMap:
-    """Rasterize ``streets`` (a manifest's ``streets``, id = index + 1) into a :class:`StreetMap`
-    of ``cell`` meters.  By default the grid is the smallest one on multiples of ``cell`` that
-    holds every footprint; ``origin`` (x, z) and ``size`` (columns, rows) set it instead."""
+    """Rasterize ``streets`` (a manifest's ``streets``, id = index + 1, at any angle) into a
+    :class:`StreetMap` of ``cell`` meters (rule: the module docstring).  By default the grid is
+    the smallest one on multiples of ``cell`` that holds every street's world box
+    (:func:`envcap.probeset.city_index.street_bounds`); ``origin`` (x, z) and ``size`` (columns,
+    rows) set it instead.  Each street is tested on the cells of its world box only."""
     if not streets:
         raise ValueError("a street map needs at least one street")
     if len(streets) > MAX_STREETS:
         raise ValueError(f"{len(streets)} streets do not fit in uint16 ids (at most {MAX_STREETS})")
     if not (math.isfinite(cell) and cell > 0):
         raise ValueError(f"cell must be a positive finite size in meters, got {cell}")
-    boxes = np.array([_footprint(st) for st in streets], dtype=np.float64)
+    boxes = np.array([street_bounds(st) for st in streets], dtype=np.float64)
     if origin is None:
         origin = (math.floor(boxes[:, 0].min() / cell) * cell, math.floor(boxes[:, 2].min() / cell) * cell)
     if size is None:
@@ -114,15 +133,96 @@ def street_map(streets: Sequence[Street], cell: float, *, origin: tuple[float, f
     w, h = size
     cx = origin[0] + (np.arange(w) + 0.5) * cell          # cell centres, float64
     cz = origin[1] + (np.arange(h) + 0.5) * cell
-    X, Z = np.meshgrid(cx, cz)                             # (rows, columns)
     best = np.full((h, w), np.inf)
     ids = np.zeros((h, w), dtype=np.uint16)
     for k, (st, (x0, x1, z0, z1)) in enumerate(zip(streets, boxes)):
-        covered = (X >= x0) & (X <= x1) & (Z >= z0) & (Z <= z1)
+        # the cells whose centres may lie in the rectangle: its world box, one cell of margin
+        i0, i1 = np.searchsorted(cx, [x0 - cell, x1 + cell])
+        j0, j1 = np.searchsorted(cz, [z0 - cell, z1 + cell])
+        X, Z = np.meshgrid(cx[i0:i1], cz[j0:j1])             # (rows, columns) of the window
+        f = world_to_frame(np.stack([X, np.zeros_like(X), Z], axis=-1), st.frame_yaw_deg, st.frame_origin_xz)
+        along, across = f[..., st.along_index], f[..., st.cross_index]
+        covered = ((along >= st.start) & (along <= st.end)
+                   & (across >= st.planes.facade_min) & (across <= st.planes.facade_max))
         if not covered.any():
             raise ValueError(f"street {k} ({st.name!r}) covers no cell centre at cell {cell} m: use a smaller cell")
-        dist = np.abs((Z if st.axis == "x" else X) - st.center)
-        take = covered & (dist < best)                     # strict: ties stay with the lower index
-        best[take] = dist[take]
-        ids[take] = k + 1
+        dist = np.abs(across - st.center)
+        win_best, win_ids = best[j0:j1, i0:i1], ids[j0:j1, i0:i1]  # views
+        take = covered & (dist < win_best)                 # strict: ties stay with the lower index
+        win_best[take] = dist[take]
+        win_ids[take] = k + 1
     return StreetMap(ids=ids, origin=(float(origin[0]), float(origin[1])), cell=float(cell))
+
+
+@dataclass(frozen=True)
+class StreetTable:
+    """Per street id (row 0 = no street; see the module docstring): ``frames`` ``(n + 1, 2, 4)``
+    float32, texel 0 = ``(cos yaw, sin yaw, t.x, t.z)``, texel 1 = ``(t.y, 0, 0, 0)`` (``t`` in
+    m); ``ranges`` ``(n + 1, 4)`` uint32 ``(shard, first layer in the shard, first layer in the
+    city, count)``.  Made for one map origin (:func:`street_table`)."""
+
+    frames: NDArray[np.float32]
+    ranges: NDArray[np.uint32]
+
+    def __post_init__(self) -> None:
+        n = self.frames.shape[0]
+        if self.frames.shape != (n, 2, 4) or self.frames.dtype != np.float32 or n < 1:
+            raise ValueError(f"frames must be (n + 1, 2, 4) float32, got {self.frames.dtype} {self.frames.shape}")
+        if self.ranges.shape != (n, 4) or self.ranges.dtype != np.uint32:
+            raise ValueError(f"ranges must be ({n}, 4) uint32, got {self.ranges.dtype} {self.ranges.shape}")
+
+    def textures(self, width: int = TABLE_WIDTH) -> tuple[NDArray[np.float32], NDArray[np.uint32]]:
+        """The two textures GLSL ``envcap_city_locate`` reads: ``frames`` RGBA32F and ``ranges``
+        RGBA32UI, each ``(rows, columns, 4)``, texel ``i`` at ``(i % columns, i // columns)``
+        (the frames' texels of id ``k`` are ``2k`` and ``2k + 1``), at most ``width`` columns,
+        zero-padded.  Upload with NEAREST filtering; read with ``texelFetch``."""
+        if not (isinstance(width, (int, np.integer)) and width >= 2):
+            raise ValueError(f"table texture width must be an integer >= 2 texels, got {width!r}")
+
+        def wrap(a: NDArray) -> NDArray:
+            cols = min(len(a), width)
+            out = np.zeros((-(-len(a) // cols) * cols, 4), a.dtype)
+            out[:len(a)] = a
+            return out.reshape(-1, cols, 4)
+        return wrap(self.frames.reshape(-1, 4)), wrap(self.ranges)
+
+    def locate(self, m: StreetMap, x: ArrayLike, y: ArrayLike, z: ArrayLike
+               ) -> tuple[NDArray[np.uint16], NDArray[np.uint32], NDArray[np.float32]]:
+        """The GLSL ``envcap_city_locate`` in numpy, float32 operation for operation: per position
+        (world m, broadcast shape ``S``) the street id (0 = none), its range ``S + (4,)`` and the
+        street-local position ``S + (3,)`` (float32; module docstring)."""
+        ids = m.lookup(x, z)
+        o = np.asarray(m.origin, dtype=np.float32)
+        x32, y32, z32 = np.broadcast_arrays(*(np.asarray(v, dtype=np.float32) for v in (x, y, z)))
+        f = self.frames[ids.astype(np.int64)]
+        c, s, tx, tz, ty = f[..., 0, 0], f[..., 0, 1], f[..., 0, 2], f[..., 0, 3], f[..., 1, 0]
+        with np.errstate(invalid="ignore", over="ignore"):
+            dx, dz = x32 - o[0], z32 - o[1]
+            local = np.stack([c * dx + s * dz + tx, y32 + ty, c * dz - s * dx + tz], axis=-1)
+        return ids, self.ranges[ids.astype(np.int64)], local
+
+
+def street_table(yaw_deg: ArrayLike, origin_xz: ArrayLike, local_origin: ArrayLike, ranges: ArrayLike,
+                 map_origin: tuple[float, float]) -> StreetTable:
+    """The :class:`StreetTable` of ``n`` streets (id ``k + 1`` = row ``k`` of the arguments):
+    ``yaw_deg`` (n,) degrees, ``origin_xz`` (n, 2) m (frame origins; 0 for a street in the world
+    frame), ``local_origin`` (n, 3) m (each street's local origin in its frame coordinates),
+    ``ranges`` (n, 4) ``(shard, shard first, city first, count)``, for a map whose origin is
+    ``map_origin``.  ``t`` is computed in float64 and rounded to float32 once."""
+    yaw = np.asarray(yaw_deg, np.float64).reshape(-1)
+    n = yaw.size
+    o = np.asarray(origin_xz, np.float64).reshape(n, 2)
+    lo = np.asarray(local_origin, np.float64).reshape(n, 3)
+    a = np.radians(yaw)
+    c, s = np.cos(a), np.sin(a)
+    mx, mz = (float(v) for v in np.asarray(map_origin, np.float32))   # the origin GLSL subtracts
+    vx, vz = mx - o[:, 0], mz - o[:, 1]
+    frames = np.zeros((n + 1, 2, 4), np.float64)
+    frames[0, 0, 0] = 1.0
+    frames[1:, 0] = np.stack([c, s, c * vx + s * vz - lo[:, 0], c * vz - s * vx - lo[:, 2]], axis=-1)
+    frames[1:, 1, 0] = -lo[:, 1]
+    r = np.zeros((n + 1, 4), np.int64)
+    r[1:] = np.asarray(ranges, np.int64).reshape(n, 4)
+    if r.min() < 0 or r.max() > np.iinfo(np.uint32).max:
+        raise ValueError("street ranges must be non-negative 32-bit integers")
+    return StreetTable(frames=frames.astype(np.float32), ranges=r.astype(np.uint32))

@@ -39,7 +39,10 @@ def test_a_key_changes_with_each_input_and_only_with_them(crossing):
               shard_key(d, st, BakeSettings(resolution=8, spacing=5, writers=("ktx2", "exr")), code),
               shard_key(d, crossing.streets[1:], BakeSettings(resolution=8, spacing=5), code),
               shard_key(d, st, BakeSettings(resolution=8, spacing=5), "0" * 64),
-              shard_key(d, st, BakeSettings(resolution=8, spacing=5), code, version="9.9")]
+              shard_key(d, st, BakeSettings(resolution=8, spacing=5), code, version="9.9"),
+              # the same street turned by 0.5 degrees, or its frame moved 1 cm: other probes, another key
+              shard_key(d, [dataclasses.replace(st[0], yaw_deg=0.5)], BakeSettings(resolution=8, spacing=5), code),
+              shard_key(d, [dataclasses.replace(st[0], origin_xz=(0.0, 0.01))], BakeSettings(resolution=8, spacing=5), code)]
     moved = crossing.mesh.positions.copy()
     moved[0, 1] = np.nextafter(moved[0, 1], np.float32(1e9))        # one vertex, one float32 step
     other_scene = dataclasses.replace(crossing, mesh=dataclasses.replace(crossing.mesh, positions=moved))
