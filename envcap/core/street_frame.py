@@ -71,3 +71,27 @@ def frame_to_world(points: ArrayLike, yaw_deg: float, origin_xz: ArrayLike = (0.
     if float(yaw_deg) == 0.0 and not np.any(o):
         return f.copy()
     return f @ r + o
+
+
+class OptionalFrame:
+    """Mixin for records whose street frame is optional (``yaw_deg`` and ``origin_xz`` fields that
+    may be ``None``, as in the manifest and the city index, which omit them for world-frame
+    streets): the frame as numbers, and whether there is one."""
+
+    yaw_deg: float | None
+    origin_xz: tuple[float, float] | None
+
+    @property
+    def frame_yaw_deg(self) -> float:
+        """``yaw_deg`` as a number (0.0 when ``None``: the world frame)."""
+        return 0.0 if self.yaw_deg is None else float(self.yaw_deg)
+
+    @property
+    def frame_origin_xz(self) -> tuple[float, float]:
+        """``origin_xz`` as numbers ((0.0, 0.0) when ``None``)."""
+        return (0.0, 0.0) if self.origin_xz is None else (float(self.origin_xz[0]), float(self.origin_xz[1]))
+
+    @property
+    def framed(self) -> bool:
+        """True when the street has its own frame (a yaw or origin other than 0)."""
+        return self.frame_yaw_deg != 0.0 or self.frame_origin_xz != (0.0, 0.0)

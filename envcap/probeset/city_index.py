@@ -37,7 +37,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from envcap import __version__
-from envcap.core.street_frame import frame_to_world, world_to_frame
+from envcap.core.street_frame import OptionalFrame, frame_to_world, world_to_frame
 from envcap.probeset.float32_range import check_number_ranges
 from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
 from envcap.probeset.manifest import Files, Level, LobeTable, Manifest, SceneInfo, SkyInfo, Street, Timings
@@ -52,7 +52,7 @@ _OMIT = {"json": "omit_none"}
 
 
 @dataclass(frozen=True)
-class CityStreet:
+class CityStreet(OptionalFrame):
     """One street of the city: its description (as in a shard's manifest), world box ``bounds``
     (x_min, x_max, z_min, z_max) m, local origin ``frame_origin`` (3,) m (frame coordinates), its
     shard (index into ``CityIndex.shards``), its city layers ``(first, count)`` and, for a street
@@ -71,21 +71,6 @@ class CityStreet:
     layers: tuple[int, int]
     yaw_deg: float | None = field(default=None, metadata=_OMIT)
     origin_xz: tuple[float, float] | None = field(default=None, metadata=_OMIT)
-
-    @property
-    def frame_yaw_deg(self) -> float:
-        """``yaw_deg`` as a number (0.0 when ``None``: the world frame)."""
-        return 0.0 if self.yaw_deg is None else float(self.yaw_deg)
-
-    @property
-    def frame_origin_xz(self) -> tuple[float, float]:
-        """``origin_xz`` as numbers ((0.0, 0.0) when ``None``)."""
-        return (0.0, 0.0) if self.origin_xz is None else (float(self.origin_xz[0]), float(self.origin_xz[1]))
-
-    @property
-    def framed(self) -> bool:
-        """True when the street has its own frame (a yaw or frame origin other than 0)."""
-        return self.frame_yaw_deg != 0.0 or self.frame_origin_xz != (0.0, 0.0)
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from envcap import __version__
-from envcap.core.street_frame import world_to_frame
+from envcap.core.street_frame import OptionalFrame, world_to_frame
 from envcap.probeset.float32_range import check_number_ranges, positive_in_float32
 from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
 from envcap.probeset.ladder_table import LadderTable, check_ladder_table
@@ -94,7 +94,7 @@ class Probe:
 
 
 @dataclass(frozen=True)
-class Street:
+class Street(OptionalFrame):
     """One street: ``axis`` "x" or "z" (the world axis it runs along), its extent ``start`` <
     ``end`` along that axis and its center line ``center`` on the cross axis (m), its nominal
     planes and its probes (in layer order).
@@ -113,19 +113,6 @@ class Street:
     probes: tuple[Probe, ...]
     yaw_deg: float | None = field(default=None, metadata=_OMIT)
     origin_xz: tuple[float, float] | None = field(default=None, metadata=_OMIT)
-
-    @property
-    def frame_yaw_deg(self) -> float:
-        """``yaw_deg`` as a number (0.0 when ``None``: the world frame)."""
-        return 0.0 if self.yaw_deg is None else float(self.yaw_deg)
-
-    @property
-    def frame_origin_xz(self) -> tuple[float, float]:
-        """``origin_xz`` as numbers ((0.0, 0.0) when ``None``)."""
-        return (0.0, 0.0) if self.origin_xz is None else (float(self.origin_xz[0]), float(self.origin_xz[1]))
-
-    framed = property(lambda self: self.frame_yaw_deg != 0.0 or self.frame_origin_xz != (0.0, 0.0),
-                      doc="True when the street has its own frame (a yaw or origin other than 0).")
 
     @property
     def along_index(self) -> int:
