@@ -259,6 +259,13 @@ def _sky_luminance(cubes: NDArray, sky: NDArray[np.float64]) -> NDArray[np.float
     return y.astype(np.float32)
 
 
+def _ratio(num: NDArray, den: NDArray) -> NDArray:
+    """``num / den`` where ``den > 0``, else 0 (a sky-weighted alpha where the filtered sky's
+    luminance is 0: no sky seen, nothing to weight)."""
+    out = np.zeros(np.broadcast(num, den).shape, np.result_type(num, den))
+    return np.divide(num, den, out=out, where=den > 0)
+
+
 def _fast_rungs(a: NDArray, ladder: RungLadder, ctx: Any, progress: bool | None, sky: NDArray | None,
                 weighted: bool) -> tuple[list[NDArray[np.float32]], list[NDArray[np.float32]] | None]:
     """The rung levels of checked cubes ``a`` ``(P, 6, N, N, C)`` (and of the RGBA ``sky`` ``(6, N, N,
@@ -327,11 +334,11 @@ def _fast_rungs(a: NDArray, ladder: RungLadder, ctx: Any, progress: bool | None,
                 if i == 0:
                     dest[..., 3] = a[b0:b0 + q, ..., 3]
                 elif compact:
-                    dest[..., 3] = np.clip(rung[:q, ..., 3] / luminance(rung[-1, ..., :3])[None], 0.0, 1.0)
+                    dest[..., 3] = np.clip(_ratio(rung[:q, ..., 3], luminance(rung[-1, ..., :3])[None]), 0.0, 1.0)
                 elif y_sky is not None:
                     ay = rung[q:q + h]
                     num = np.stack([ay[..., 0], ay[..., 1]], 1).reshape((2 * h,) + ay.shape[1:4])[:q]
-                    dest[..., 3] = np.clip(num / np.repeat(ay[..., 2], 2, axis=0)[:q], 0.0, 1.0)
+                    dest[..., 3] = np.clip(_ratio(num, np.repeat(ay[..., 2], 2, axis=0)[:q]), 0.0, 1.0)
                 if sky_out is not None and b0 == 0:
                     sky_out[j][r] = rung[-1]
                     np.clip(sky_out[j][r][..., 3], 0.0, 1.0, out=sky_out[j][r][..., 3])

@@ -83,6 +83,19 @@ def _box_reduce(v: NDArray[np.float64], size: int) -> NDArray[np.float64]:
     return v.reshape(m, 6, size, k, size, k, c).sum(axis=(3, 5))
 
 
+def _lowest(a: NDArray[np.floating]) -> NDArray[np.float64]:
+    """``min(0, min over the texels)`` of each cube and channel of ``a`` ``(M, 6, N, N, C)``, as ``(M, 1, 1, 1, C)``."""
+    return np.minimum(np.asarray(a).min(axis=(1, 2, 3), keepdims=True).astype(np.float64), 0.0)
+
+
+def _floor(res: NDArray[np.floating], low: NDArray[np.float64]) -> NDArray[np.float32]:
+    """``res`` as float32, raised to ``low`` where the truncated harmonics undershoot it: a lobe
+    average of a cube without negative texels has none (a black sky region beside a lit facade
+    rings to ~-1e-6 of the facade at ``w = 30``, which ``probes.ktx2`` refuses); other texels
+    keep their bits."""
+    return np.maximum(np.asarray(res, np.float32), low.astype(np.float32))
+
+
 def filter_wide_lobes(cubes: NDArray[np.floating], powers: Sequence[float], sizes: Sequence[int],
                       degree: int = SH_DEGREE, source_power: float = 0.0) -> list[NDArray[np.float32]]:
     """The normalized ``cos^powers[i]`` filter of ``M`` finite cubes ``(M, 6, N, N, C)`` on
@@ -95,6 +108,8 @@ def filter_wide_lobes(cubes: NDArray[np.floating], powers: Sequence[float], size
     are already the ``cos^source_power`` filter of the environment (``source_power`` above every
     ``powers[i]``, RMS angle over a texel: smooth on their texels, so no hot texels and no
     normalizer), and band ``l`` is scaled by ``lambda_l(w) / lambda_l(source_power)`` (<= 1).
+    The ringing of the truncated harmonics below ``min(0, min of each cube and channel)`` is cut
+    there: a cube without negative texels filters to none.
     """
     a = np.asarray(cubes)
     m, _, n, _, nch = a.shape
@@ -103,8 +118,10 @@ def filter_wide_lobes(cubes: NDArray[np.floating], powers: Sequence[float], size
     if source_power > 0.0:
         if any(float(w) >= source_power for w in powers):
             raise ValueError(f"source_power {source_power} must exceed every power, got {list(powers)}")
-        return _from_filtered(a, powers, sizes, degree, source_power)
+        low = _lowest(a)
+        return [_floor(r, low) for r in _from_filtered(a, powers, sizes, degree, source_power)]
     lum = 3 if nch >= 3 else nch
+    low = _lowest(a)
     src = SH_SOURCE_SIZE if n > SH_SOURCE_SIZE and n % SH_SOURCE_SIZE == 0 else n
     om = cube_geometry.texel_solid_angles(n)
     d0 = cube_geometry.texel_directions(n).reshape(-1, 3)
@@ -141,7 +158,7 @@ def filter_wide_lobes(cubes: NDArray[np.floating], powers: Sequence[float], size
             if idx.size:
                 cos = np.clip(d_out @ d0[idx].T, 0.0, None)        # (6 s^2, H)
                 res[i] += (cos ** w * norm) @ vals
-        out.append((res / nu[None]).reshape(m, 6, size, size, nch).astype(np.float32))
+        out.append(_floor((res / nu[None]).reshape(m, 6, size, size, nch), low))
     return out
 
 
