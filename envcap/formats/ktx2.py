@@ -4,10 +4,12 @@ Written from the Khronos KTX 2.0 specification (https://registry.khronos.org/KTX
 and the Khronos Data Format specification 1.3; see ``docs/formats.md`` for the layout.
 
 Supported: ``VK_FORMAT_R16G16B16A16_SFLOAT`` (97, ``"rgba16f"``) and
-``VK_FORMAT_R32G32B32A32_SFLOAT`` (109, ``"rgba32f"``), ``faceCount = 6``, ``pixelDepth = 0``,
-no supercompression.  Level ``k`` of a cube has face size ``max(1, N >> k)``; face images are
-stored as in envcap cubes (``[face, row = t, column = s]``, GL face order), which is what
-``KTXorientation = "rd"`` states (s to the right, t down: row 0 first).
+``VK_FORMAT_R32G32B32A32_SFLOAT`` (109, ``"rgba32f"``), and the one-channel
+``VK_FORMAT_R16_SFLOAT`` (76, ``"r16f"``) and ``VK_FORMAT_R32_SFLOAT`` (100, ``"r32f"``);
+``faceCount = 6``, ``pixelDepth = 0``, no supercompression.  Level ``k`` of a cube has face
+size ``max(1, N >> k)``; face images are stored as in envcap cubes (``[face, row = t, column =
+s]``, GL face order), which is what ``KTXorientation = "rd"`` states (s to the right, t down:
+row 0 first).
 """
 
 from __future__ import annotations
@@ -29,12 +31,19 @@ IDENTIFIER = b"\xabKTX 20\xbb\r\n\x1a\n"
 
 VK_FORMAT_R16G16B16A16_SFLOAT = 97
 VK_FORMAT_R32G32B32A32_SFLOAT = 109
+VK_FORMAT_R16_SFLOAT = 76
+VK_FORMAT_R32_SFLOAT = 100
 
 FORMATS: dict[str, tuple[int, type]] = {
     "rgba16f": (VK_FORMAT_R16G16B16A16_SFLOAT, np.float16),
     "rgba32f": (VK_FORMAT_R32G32B32A32_SFLOAT, np.float32),
+    "r16f": (VK_FORMAT_R16_SFLOAT, np.float16),
+    "r32f": (VK_FORMAT_R32_SFLOAT, np.float32),
 }
 """Format name -> (vkFormat, numpy component dtype)."""
+
+CHANNELS: dict[str, int] = {"rgba16f": 4, "rgba32f": 4, "r16f": 1, "r32f": 1}
+"""Format name -> components per texel (RGBA, or R alone: one DFD sample, channel id 0)."""
 
 HALF_MAX = float(np.finfo(np.float16).max)
 """Largest finite half-float value (65504)."""
@@ -62,10 +71,11 @@ def _align(x: int, a: int) -> int:
 
 
 def _dfd(fmt: str, premultiplied: bool) -> bytes:
-    """Basic Data Format Descriptor (with its leading dfdTotalSize) for an RGBA float format."""
+    """Basic Data Format Descriptor (with its leading dfdTotalSize) for an RGBA or R float format."""
     comp = FORMATS[fmt][1]
     bits = np.dtype(comp).itemsize * 8
-    block_size = 24 + 16 * 4
+    nch = CHANNELS[fmt]
+    block_size = 24 + 16 * nch
     words = [
         (KHR_DF_KHR_DESCRIPTORTYPE_BASICFORMAT << 17) | KHR_DF_VENDORID_KHRONOS,
         (block_size << 16) | KHR_DF_VERSIONNUMBER_1_3,
@@ -74,10 +84,10 @@ def _dfd(fmt: str, premultiplied: bool) -> bytes:
         | (KHR_DF_TRANSFER_LINEAR << 16)
         | ((KHR_DF_FLAG_ALPHA_PREMULTIPLIED if premultiplied else 0) << 24),
         0,  # texelBlockDimension0..3 = 1x1x1x1 (stored minus one)
-        4 * bits // 8,  # bytesPlane0 = texel size, bytesPlane1..3 = 0
+        nch * bits // 8,  # bytesPlane0 = texel size, bytesPlane1..3 = 0
         0,  # bytesPlane4..7
     ]
-    for i, ch in enumerate(CHANNEL_IDS):
+    for i, ch in enumerate(CHANNEL_IDS[:nch]):
         ctype = ch | KHR_DF_SAMPLE_DATATYPE_FLOAT | KHR_DF_SAMPLE_DATATYPE_SIGNED
         words += [(i * bits) | ((bits - 1) << 16) | (ctype << 24), 0, FLOAT_LOWER, FLOAT_UPPER]
     body = struct.pack(f"<{len(words)}I", *words)
@@ -169,13 +179,14 @@ def write_ktx2(
 ) -> Path:
     """Write a float cube map (or cube-map array) with its mip chain as a KTX 2.0 file, atomically.
 
-    ``levels[k]`` has shape ``(L, 6, N_k, N_k, 4)`` when ``layered`` (cube-map array,
-    ``layerCount = L``) or ``(6, N_k, N_k, 4)`` (plain cube map, ``layerCount = 0``), with
+    ``levels[k]`` has shape ``(L, 6, N_k, N_k, C)`` when ``layered`` (cube-map array,
+    ``layerCount = L``) or ``(6, N_k, N_k, C)`` (plain cube map, ``layerCount = 0``), with
     ``N_k = max(1, N_0 >> k)``; arrays are ``[layer, face (GL order), row = t, column = s,
-    RGBA]``.  ``fmt`` is ``"rgba16f"`` or ``"rgba32f"``.  Values must be finite; for
-    ``rgba16f`` values beyond +-65504 raise ``ValueError`` unless ``clamp=True``.
-    ``premultiplied`` sets the DFD's alpha-premultiplied flag.  ``kv`` adds key/value entries
-    (str -> str) next to ``KTXorientation = "rd"`` and ``KTXwriter``.  Returns the path.
+    channel]``.  ``fmt`` is ``"rgba16f"`` or ``"rgba32f"`` (``C = 4``, RGBA) or ``"r16f"`` or
+    ``"r32f"`` (``C = 1``, R).  Values must be finite; for the half formats values beyond
+    +-65504 raise ``ValueError`` unless ``clamp=True``.
+    ``premultiplied`` sets the DFD's alpha-premultiplied flag (RGBA only).  ``kv`` adds key/value
+    entries (str -> str) next to ``KTXorientation = "rd"`` and ``KTXwriter``.  Returns the path.
 
     Streamed: the header, level index, DFD and key/values are computed from the shapes, then
     each level is converted and written on its own (smallest first, as the file stores them), so
@@ -187,13 +198,16 @@ def write_ktx2(
     if not isinstance(levels, (list, tuple)) or len(levels) == 0:
         raise ValueError("levels must be a non-empty list of arrays")
     vk_format, comp = FORMATS[fmt]
+    nch = CHANNELS[fmt]
+    if premultiplied and nch != 4:
+        raise ValueError(f"premultiplied needs an alpha channel; {fmt!r} has none")
     arrays: list[NDArray] = []  # the checked, unconverted levels
     n0 = layers = 0
     for k, lev in enumerate(levels):
         a = np.asarray(lev)
         exp_nd = 5 if layered else 4
-        if a.ndim != exp_nd or a.shape[-4] != 6 or a.shape[-1] != 4 or a.shape[-3] != a.shape[-2]:
-            want = "(L, 6, N, N, 4)" if layered else "(6, N, N, 4)"
+        if a.ndim != exp_nd or a.shape[-4] != 6 or a.shape[-1] != nch or a.shape[-3] != a.shape[-2]:
+            want = f"(L, 6, N, N, {nch})" if layered else f"(6, N, N, {nch})"
             raise ValueError(f"level {k} must have shape {want}, got {a.shape}")
         if k == 0:
             n0 = a.shape[-2]
@@ -205,7 +219,7 @@ def write_ktx2(
                 raise ValueError(f"{len(levels)} levels given, but a {n0}-texel cube has at most {max_levels}")
         nk = max(1, n0 >> k)
         if a.shape[-2] != nk or (layered and a.shape[0] != layers):
-            want = ((layers,) if layered else ()) + (6, nk, nk, 4)
+            want = ((layers,) if layered else ()) + (6, nk, nk, nch)
             raise ValueError(f"level {k} must have shape {want}, got {a.shape}")
         if not np.issubdtype(a.dtype, np.floating):
             raise ValueError(f"level {k}: expected a floating-point array, got dtype {a.dtype}")
@@ -213,7 +227,7 @@ def write_ktx2(
     kvd = _kvd(_check_kv(kv))
     dfd = _dfd(fmt, premultiplied)
     n_levels = len(arrays)
-    texel = 4 * np.dtype(comp).itemsize
+    texel = nch * np.dtype(comp).itemsize
     align = math.lcm(texel, 4)
     nbytes = [a.size * np.dtype(comp).itemsize for a in arrays]
 
@@ -244,11 +258,12 @@ def read_ktx2(path: str | os.PathLike[str]) -> tuple[list[NDArray[np.float32]], 
     """Read a KTX 2.0 float cube map / cube-map array written by :func:`write_ktx2` (or any writer
     of the same subset), validating every header field.
 
-    Returns ``(levels, info)``: ``levels[k]`` float32 of shape ``(L, 6, N_k, N_k, 4)`` for a
-    cube-map array or ``(6, N_k, N_k, 4)`` for a plain cube map; ``info`` holds ``fmt``,
-    ``vk_format``, ``size``, ``layers`` (0 for a plain cube), ``level_count``, ``layered``,
-    ``premultiplied`` and ``kv`` (dict str -> str).  Raises ``FileNotFoundError`` for a missing
-    file and ``ValueError`` naming the problem for a truncated or corrupt one.
+    Returns ``(levels, info)``: ``levels[k]`` float32 of shape ``(L, 6, N_k, N_k, C)`` for a
+    cube-map array or ``(6, N_k, N_k, C)`` for a plain cube map (``C``: 4, or 1 for ``r16f`` /
+    ``r32f``); ``info`` holds ``fmt``, ``vk_format``, ``size``, ``layers`` (0 for a plain cube),
+    ``level_count``, ``layered``, ``premultiplied`` and ``kv`` (dict str -> str).  Raises
+    ``FileNotFoundError`` for a missing file and ``ValueError`` naming the problem for a truncated
+    or corrupt one.
     """
     p = Path(path)
     if not p.is_file():
@@ -263,9 +278,11 @@ def read_ktx2(path: str | os.PathLike[str]) -> tuple[list[NDArray[np.float32]], 
         raise ValueError(f"{where}: not a KTX 2.0 file (bad identifier {ident!r})")
     fmts = {v[0]: name for name, v in FORMATS.items()}
     if vk_format not in fmts:
-        raise ValueError(f"{where}: vkFormat {vk_format} not supported (expected 97 RGBA16F or 109 RGBA32F)")
+        raise ValueError(f"{where}: vkFormat {vk_format} not supported "
+                         "(expected 97 RGBA16F, 109 RGBA32F, 76 R16F or 100 R32F)")
     fmt = fmts[vk_format]
     comp = np.dtype(FORMATS[fmt][1])
+    nch = CHANNELS[fmt]
     if type_size != comp.itemsize:
         raise ValueError(f"{where}: typeSize {type_size} does not match {fmt} (expected {comp.itemsize})")
     if faces != 6:
@@ -290,13 +307,13 @@ def read_ktx2(path: str | os.PathLike[str]) -> tuple[list[NDArray[np.float32]], 
     if total != dfd_len:
         raise ValueError(f"{where}: dfdTotalSize {total} != dfdByteLength {dfd_len}")
     w = struct.unpack_from(f"<{(dfd_len - 4) // 4}I", data, dfd_off + 4)
-    if w[0] != 0 or (w[1] >> 16) != 24 + 16 * 4 or dfd_len != 4 + 24 + 64:
-        raise ValueError(f"{where}: DFD is not a basic descriptor with 4 samples")
+    if w[0] != 0 or (w[1] >> 16) != 24 + 16 * nch or dfd_len != 4 + 24 + 16 * nch:
+        raise ValueError(f"{where}: DFD is not a basic descriptor with {nch} sample(s)")
     if (w[2] & 0xFF) != KHR_DF_MODEL_RGBSDA or ((w[2] >> 16) & 0xFF) != KHR_DF_TRANSFER_LINEAR:
         raise ValueError(f"{where}: DFD color model / transfer must be RGBSDA / linear")
     premultiplied = bool((w[2] >> 24) & KHR_DF_FLAG_ALPHA_PREMULTIPLIED)
     bits = comp.itemsize * 8
-    for i, ch in enumerate(CHANNEL_IDS):
+    for i, ch in enumerate(CHANNEL_IDS[:nch]):
         s0 = w[6 + 4 * i]
         exp = (i * bits) | ((bits - 1) << 16) | ((ch | 0xC0) << 24)
         if s0 != exp:
@@ -318,7 +335,7 @@ def read_ktx2(path: str | os.PathLike[str]) -> tuple[list[NDArray[np.float32]], 
         except UnicodeDecodeError as e:
             raise ValueError(f"{where}: key/value entry at byte {pos} is not UTF-8") from e
         pos = _align(pos + 4 + n, 4)
-    texel = 4 * comp.itemsize
+    texel = nch * comp.itemsize
     align = math.lcm(texel, 4)
     levels: list[NDArray[np.float32]] = []
     nl = max(1, layers)
@@ -333,7 +350,7 @@ def read_ktx2(path: str | os.PathLike[str]) -> tuple[list[NDArray[np.float32]], 
         if off + length > len(data):
             raise ValueError(f"{where}: truncated: level {k} needs bytes {off}..{off + length}, file has {len(data)}")
         a = np.frombuffer(data, dtype=comp.newbyteorder("<"), count=length // comp.itemsize, offset=off)
-        shape = ((layers,) if layers else ()) + (6, nk, nk, 4)
+        shape = ((layers,) if layers else ()) + (6, nk, nk, nch)
         levels.append(a.reshape(shape).astype(np.float32))
     info = {
         "fmt": fmt, "vk_format": vk_format, "size": width, "layers": layers, "level_count": n_levels,
@@ -343,8 +360,9 @@ def read_ktx2(path: str | os.PathLike[str]) -> tuple[list[NDArray[np.float32]], 
 
 
 def basic_dfd(fmt: str, premultiplied: bool) -> bytes:
-    """The Data Format Descriptor of ``fmt`` (``"rgba16f"`` / ``"rgba32f"``) with its leading
-    ``dfdTotalSize`` (92 bytes), as every envcap KTX2 file has it (``docs/formats.md``)."""
+    """The Data Format Descriptor of ``fmt`` (``"rgba16f"`` / ``"rgba32f"``: 92 bytes; ``"r16f"``
+    / ``"r32f"``: 44) with its leading ``dfdTotalSize``, as envcap KTX2 files have it
+    (``docs/formats.md``)."""
     if fmt not in FORMATS:
         raise ValueError(f"unknown KTX2 format {fmt!r}; expected one of {sorted(FORMATS)}")
     return _dfd(fmt, premultiplied)

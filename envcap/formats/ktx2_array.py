@@ -31,8 +31,8 @@ def write_ktx2_array(path: str | os.PathLike[str], image: NDArray, *, fmt: str =
     KTX2 2D texture array of one level, atomically; return the path.  ``premultiplied`` sets the
     DFD's alpha-premultiplied flag; ``kv`` adds key/value strings (none by default: the KTX
     specification defines no key for them, and ``ktx validate`` warns about custom keys)."""
-    if fmt not in FORMATS:
-        raise ValueError(f"unknown KTX2 format {fmt!r}; expected one of {sorted(FORMATS)}")
+    if fmt not in ("rgba16f", "rgba32f"):
+        raise ValueError(f"KTX2 texture arrays are RGBA: fmt must be 'rgba16f' or 'rgba32f', got {fmt!r}")
     a = np.asarray(image)
     if a.ndim != 4 or a.shape[-1] != 4 or min(a.shape[:3]) < 1:
         raise ValueError(f"a KTX2 texture array must have shape (L, H, W, 4) with L, H, W >= 1, got {a.shape}")
