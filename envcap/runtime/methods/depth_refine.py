@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from envcap.core import cube
+from envcap.core.inverse_distance import MAX_DISTANCE, inverse_distance  # noqa: F401 (MAX_DISTANCE: public here too)
 from envcap.runtime.chains import ProbeChains
 from envcap.runtime.footprint import MIN_COS, hit_normal
 from envcap.runtime.glsl_math import dot3
@@ -60,19 +61,6 @@ steps); ``tol``: relative distance mismatch above which the planes' hit is refin
 MIN_INV_DISTANCE = 1.0e-5
 """Inverse distances (1/m) at or below this count as sky (surfaces beyond 100 km).  GLSL
 ``ENVCAP_MIN_INV_DISTANCE``."""
-
-MAX_DISTANCE = 1.0e5
-"""Distances (m) at or beyond this are stored as sky (0) by :func:`inverse_distance`."""
-
-
-def inverse_distance(distance: ArrayLike) -> NDArray[np.float32]:
-    """The runtime's distance texture: ``1 / distance`` (1/m) as float32, shape unchanged
-    (``(L, 6, N, N)`` or ``(6, N, N)``); 0 where the probe sees the sky (distance 0), and for
-    distances that are not positive and finite or are >= :data:`MAX_DISTANCE` (Inf, NaN)."""
-    D = np.asarray(distance, np.float64)
-    ok = np.isfinite(D) & (D > 0) & (D < MAX_DISTANCE)
-    return np.where(ok, 1.0 / np.where(ok, D, 1.0), 0.0).astype(np.float32)
-
 
 def fetch_inverse(inv: NDArray, u: NDArray, layer: ArrayLike) -> NDArray[np.float64]:
     """Nearest-texel read of ``inv`` ``(L, 6, N, N)`` along unit ``u`` ``(M, 3)`` of ``layer``
