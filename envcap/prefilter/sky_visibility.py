@@ -48,6 +48,7 @@ from envcap.prefilter.fast import Quality, prefilter_level, prefilter_many
 
 __all__ = [
     "DEFAULT_MAX_POWER",
+    "PREFILTER_BATCH_BYTES",
     "MAX_ORDER",
     "SkyVisibility",
     "band_factors",
@@ -57,11 +58,15 @@ __all__ = [
     "project_sh",
     "sh_basis",
     "sh_count",
+    "sky_visibility_chunk",
     "visibility_bytes_per_probe",
 ]
 
 MAX_ORDER = 4
 """Highest SH order ``l`` supported (25 coefficients; GLSL ``ENVCAP_SKY_VIS_MAX_SH``)."""
+PREFILTER_BATCH_BYTES = 64 << 20
+"""The default ``batch_bytes`` of :func:`envcap.prefilter.fast.prefilter_many`: its batches are
+this function's chunks of probes (:func:`sky_visibility_chunk`)."""
 DEFAULT_MAX_POWER = 130.0
 """Levels with a rung of ``w`` above this are not stored (the composite error there is < 4 %)."""
 
@@ -219,7 +224,7 @@ def visibility_bytes_per_probe(ladder: RungLadder, order: int = 2, max_power: fl
 
 def prefilter_sky_visibility(alpha: ArrayLike, ladder: RungLadder, order: int = 2,
                              max_power: float = DEFAULT_MAX_POWER, quality: Quality = "default",
-                             ctx: Any = None) -> SkyVisibility:
+                             ctx: Any = None, batch_bytes: int = PREFILTER_BATCH_BYTES) -> SkyVisibility:
     """:class:`SkyVisibility` of the alpha cubes ``(P, 6, N, N)`` (or one ``(6, N, N)``) of captures.
 
     Each rung is the same GL filter and lobe as :func:`envcap.prefilter.rungs.prefilter_rungs`
@@ -227,40 +232,62 @@ def prefilter_sky_visibility(alpha: ArrayLike, ladder: RungLadder, order: int = 
     The filtered cube holds ``(alpha, alpha, alpha, alpha Y_1, .., alpha Y_{n-1})``, so the filter's
     coarse texels sit at their alpha-weighted centroids; ``V_00 = Y_00 filter(alpha)``.
     ``ValueError``: NaN/Inf alpha, a shape that is not the ladder's, a bad order.
+
+    Memory: the float64 channel stack (``3 + n_sh`` channels) and the filter's pyramid exist for one
+    chunk of probes at a time, the cubes of one batch of :func:`envcap.prefilter.fast.prefilter_many`
+    (``batch_bytes`` over 16 B per level-0 texel: :func:`sky_visibility_chunk`), so the peak is
+    bounded by the chunk (``envcap.probeset.bake_bounds``); the chunks are those batches, so the
+    result is bit-identical to filtering all probes in one call.
     """
-    a = np.asarray(alpha, dtype=np.float64)
-    if a.ndim == 3:
-        a = a[None]
+    src = np.asarray(alpha)
+    if not np.issubdtype(src.dtype, np.floating):
+        src = src.astype(np.float64)
+    if src.ndim == 3:
+        src = src[None]
     sh_count(order)
-    if a.ndim != 4 or a.shape[1] != 6 or a.shape[2] != a.shape[3] or a.shape[0] < 1:
+    if src.ndim != 4 or src.shape[1] != 6 or src.shape[2] != src.shape[3] or src.shape[0] < 1:
         raise ValueError(f"alpha must be (P, 6, N, N) or (6, N, N), got shape {np.shape(alpha)}")
-    if not np.isfinite(a).all():
-        raise ValueError(f"alpha has {int((~np.isfinite(a)).sum())} NaN/Inf texels")
-    p_all, _, n, _ = a.shape
+    if not np.isfinite(src).all():
+        raise ValueError(f"alpha has {int((~np.isfinite(src)).sum())} NaN/Inf texels")
+    p_all, _, n, _ = src.shape
     if n != ladder.sizes[0]:
         raise ValueError(f"alpha has {n}-texel faces, the rung ladder starts at {ladder.sizes[0]}")
     basis = sh_basis(cube_geometry.texel_directions(n), order)         # (6, n, n, n_sh)
-    chans = np.concatenate([np.repeat(a[..., None], 3, -1), a[..., None] * basis[None, ..., 1:]], -1)
     j0 = first_stored_level(ladder, max_power)
     r_per, big_j = ladder.per_level, ladder.levels
-    out = [np.empty((p_all * r_per, 6, s, s, chans.shape[-1]), np.float32) for s in ladder.sizes[j0:]]
+    out = [np.empty((p_all * r_per, 6, s, s, 3 + basis.shape[-1] - 1), np.float32) for s in ladder.sizes[j0:]]
+    per = sky_visibility_chunk(n, batch_bytes)
     own = ctx is None
     if own:
         ctx = create_context()
     try:
-        for r in range(r_per):
-            if big_j > 1:
-                powers = (ladder.powers[0],) + tuple(ladder.level_powers(j)[r] for j in range(1, big_j))
-                chain = prefilter_many(chans, LobeLadder(ladder.sizes, powers), quality=quality, ctx=ctx, progress=False)
-                for j in range(max(j0, 1), big_j):
-                    out[j - j0][r::r_per] = chain[j]
-            if j0 == 0:
-                level_q = quality if quality != "composed" else "default"
-                for p in range(p_all):
-                    out[0][p * r_per + r] = chans[p] if r == 0 else \
-                        prefilter_level(chans[p], ladder.powers[r], n, quality=level_q, ctx=ctx)
+        for c0 in range(0, p_all, per):
+            a = src[c0:c0 + per].astype(np.float64)
+            chans = np.concatenate([np.repeat(a[..., None], 3, -1), a[..., None] * basis[None, ..., 1:]], -1)
+            rows = slice(c0 * r_per, (c0 + a.shape[0]) * r_per)
+            for r in range(r_per):
+                if big_j > 1:
+                    powers = (ladder.powers[0],) + tuple(ladder.level_powers(j)[r] for j in range(1, big_j))
+                    chain = prefilter_many(chans, LobeLadder(ladder.sizes, powers), quality=quality, ctx=ctx,
+                                           progress=False, batch_bytes=batch_bytes)
+                    for j in range(max(j0, 1), big_j):
+                        out[j - j0][rows][r::r_per] = chain[j]
+                    del chain
+                if j0 == 0:
+                    level_q = quality if quality != "composed" else "default"
+                    for p in range(a.shape[0]):
+                        out[0][rows][p * r_per + r] = chans[p] if r == 0 else \
+                            prefilter_level(chans[p], ladder.powers[r], n, quality=level_q, ctx=ctx)
+            del a, chans
     finally:
         if own:
             ctx.release()
     vis = [np.concatenate([SH_C[0] * o[..., :1], o[..., 3:]], -1).astype(np.float32) for o in out]
     return SkyVisibility(vis, ladder, int(order), j0)
+
+
+def sky_visibility_chunk(resolution: int, batch_bytes: int = PREFILTER_BATCH_BYTES) -> int:
+    """Probes per chunk of :func:`prefilter_sky_visibility` at ``resolution`` texels per face: one
+    batch of :func:`envcap.prefilter.fast.prefilter_many` (its rule: ``batch_bytes`` over 16 B per
+    level-0 texel, at least 1)."""
+    return max(1, int(batch_bytes // (6 * resolution * resolution * 16)))

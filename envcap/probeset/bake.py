@@ -157,6 +157,7 @@ def bake_probe_set(
     max_probes: int = MAX_PROBES,
     report: BakeProgress | None = None,
     on_captured: CapturedFn | None = None,
+    writers: Sequence[str] = (),
 ) -> ProbeSet:
     """Capture and filter the probes of every street of ``scene``.
 
@@ -172,6 +173,7 @@ def bake_probe_set(
     through the filtered alpha of facade edges at wide lobes (see docs/evaluation.md).
     ``ctx``: a moderngl context (one is made when ``None``).  Returns the probe set in memory;
     the layers of ``levels`` are the probes of all streets, in street order.
+    ``writers``: names of the writers that will run on the result (their memory is in the estimate).
 
     ``report``: stages and probes/s (:class:`envcap.probeset.progress.BakeProgress`: sky,
     capture, prefilter); without one the capture and filter show their own tqdm bars as
@@ -194,7 +196,7 @@ def bake_probe_set(
         raise ValueError(f"ladder mode (--ladder) must be one of {list(LADDER_MODES)} (a rung ladder needs filtered levels), got {ladder_mode!r}")
     count = sum(probe_count(st, spacing) for st in scene.streets)  # validates the spacing
     estimate = estimate_bake(count, resolution, filter_levels=filter_levels,
-                             rungs_per_level=RUNGS_PER_LEVEL.get(ladder_mode, 0))
+                             rungs_per_level=RUNGS_PER_LEVEL.get(ladder_mode, 0), writers=writers)
     check_bake_cost(estimate, sum(st.length for st in scene.streets), spacing, max_probes)
     terrain = GroundHeights(scene.mesh) if any(st.follow_terrain for st in scene.streets) else None
     placements = [place_probes(st, spacing=spacing, height=height, max_probes=max_probes, ground_at=terrain)

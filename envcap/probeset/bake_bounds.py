@@ -17,6 +17,7 @@ available), the count against :data:`envcap.probeset.placement.MAX_PROBES`.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap.core.budget import check_bytes, check_count, format_bytes
+from envcap.prefilter.sky_visibility import sky_visibility_chunk
 from envcap.probeset.float32_range import FLOAT32_MAX
 from envcap.scene.model import Scene
 
@@ -55,6 +57,14 @@ _RUNG_KEPT_B = 16.0 * 4.0 / 3.0
 _RUNG_CHUNK_B = 33.0
 _RUNG_CHUNK_TEXELS = (64 << 20) / 16.0
 _GL_BYTES = 64 << 20          # a fresh GL context and the capture target
+# An opt-in writer adds its working memory on top (conservative: it runs after the bake's transients
+# are freed).  ``sky_visibility`` (envcap.prefilter.sky_visibility): per chunk of probes (one prefilter
+# batch, sky_visibility_chunk) the float64 6-channel stack, the filter's copy, pyramid and GL buffers
+# (400 B per level-0 texel); for the whole set the moments, their packed and half-float copies (80 B).
+# Fitted on peak RSS of the writer's work alone: 32^2 x 30 probes 80 MiB (model 84), 64^2 x 30 292 (337),
+# 32^2 x 240 in chunks of 20 149 (159).
+_SKY_VIS_CHUNK_B = 400.0
+_SKY_VIS_KEPT_B = 80.0
 
 # Seconds at llvmpipe rates (2 CPU cores): per probe (draw setup, files) and per texel.
 _PROBE_S = 0.025 + 0.012
@@ -113,10 +123,12 @@ class BakeEstimate:
                 f"roughly {format_seconds(self.seconds)} at llvmpipe (CPU) rates, less on a GPU")
 
 
-def estimate_bake(probes: float, resolution: int, *, filter_levels: bool = True, rungs_per_level: int = 0) -> BakeEstimate:
+def estimate_bake(probes: float, resolution: int, *, filter_levels: bool = True, rungs_per_level: int = 0,
+                  writers: Iterable[str] = ()) -> BakeEstimate:
     """The cost model of a bake of ``probes`` probes at ``resolution`` texels per face
     (see the module docstring); every quantity is a float (``inf`` when past counting).
-    ``rungs_per_level``: ``R`` of a rung ladder (``envcap capture --ladder``; 0: the paper's chain)."""
+    ``rungs_per_level``: ``R`` of a rung ladder (``envcap capture --ladder``; 0: the paper's chain).
+    ``writers``: the writers that will run on the result (names; ``sky_visibility`` adds its memory)."""
     n = float(resolution) if resolution < 1 << 1000 else math.inf
     face = 6.0 * _square(n)
     texels = probes * face
@@ -130,6 +142,9 @@ def estimate_bake(probes: float, resolution: int, *, filter_levels: bool = True,
         seconds = texels * (_CAPTURE_TEXEL_S + _WRITE_TEXEL_S)
     if filter_levels and rungs_per_level > 0:
         peak += rungs_per_level * (_RUNG_KEPT_B * (texels + face) + _RUNG_CHUNK_B * min(texels, _RUNG_CHUNK_TEXELS))
+    if "sky_visibility" in set(writers):
+        chunk = sky_visibility_chunk(int(resolution)) * face
+        peak += _SKY_VIS_CHUNK_B * min(texels, chunk) + _SKY_VIS_KEPT_B * texels
     peak += _SKY_B * face + _GL_BYTES
     seconds += probes * _PROBE_S + face * _SKY_TEXEL_S
     return BakeEstimate(probes, int(resolution), texels, peak, seconds)

@@ -52,7 +52,8 @@ def bake_to_directory(scene: Scene, out: str | os.PathLike[str], *, exr: bool = 
     report = BakeProgress("off") if report is None else report
     with atomic_output_dir(out, kind="probe-set") as tmp, \
             ProbeFileWriter(tmp, exr=exr, previews=previews) as files:
-        ps = bake_probe_set(scene, report=report, on_captured=files.submit if files.active else None, **bake_options)
+        ps = bake_probe_set(scene, report=report, on_captured=files.submit if files.active else None, writers=rest,
+                            **bake_options)
         ps.manifest.to_json()  # strict JSON and every manifest rule
         check_probe_set(ps)
         written = {}
