@@ -58,6 +58,7 @@ from envcap.probeset.manifest import Street
 
 MAX_STREETS = 65535      # uint16 ids, 0 reserved for "no street"
 TABLE_WIDTH = 1024       # columns of the locate tables' textures (GL ES 3.0 guarantees 2048)
+MAX_MAP_SIZE = 16384     # texels per side of the map: GL_MAX_TEXTURE_SIZE of most GPUs (docs/scale.md, Limits)
 
 
 @dataclass(frozen=True)
@@ -117,7 +118,9 @@ def street_map(streets: Sequence[Street], cell: float, *, origin: tuple[float, f
     :class:`StreetMap` of ``cell`` meters (rule: the module docstring).  By default the grid is
     the smallest one on multiples of ``cell`` that holds every street's world box
     (:func:`envcap.probeset.city_index.street_bounds`); ``origin`` (x, z) and ``size`` (columns,
-    rows) set it instead.  Each street is tested on the cells of its world box only."""
+    rows) set it instead.  Each street is tested on the cells of its world box only.  A grid past
+    :data:`MAX_MAP_SIZE` texels per side is a ``ValueError`` (naming ``--map-cell`` and the smallest
+    cell that fits) before anything is allocated."""
     if not streets:
         raise ValueError("a street map needs at least one street")
     if len(streets) > MAX_STREETS:
@@ -125,11 +128,15 @@ def street_map(streets: Sequence[Street], cell: float, *, origin: tuple[float, f
     if not (math.isfinite(cell) and cell > 0):
         raise ValueError(f"cell must be a positive finite size in meters, got {cell}")
     boxes = np.array([street_bounds(st) for st in streets], dtype=np.float64)
+    extent = (float(boxes[:, 1].max() - boxes[:, 0].min()), float(boxes[:, 3].max() - boxes[:, 2].min()))
+    if size is None:   # before floor / ceil: a tiny cell overflows them
+        _check_map_size((extent[0] / cell, extent[1] / cell), cell, *extent)
     if origin is None:
         origin = (math.floor(boxes[:, 0].min() / cell) * cell, math.floor(boxes[:, 2].min() / cell) * cell)
     if size is None:
         size = (max(1, math.ceil((boxes[:, 1].max() - origin[0]) / cell)),
                 max(1, math.ceil((boxes[:, 3].max() - origin[1]) / cell)))
+    _check_map_size(size, cell, *extent)
     w, h = size
     cx = origin[0] + (np.arange(w) + 0.5) * cell          # cell centres, float64
     cz = origin[1] + (np.arange(h) + 0.5) * cell
@@ -152,6 +159,20 @@ def street_map(streets: Sequence[Street], cell: float, *, origin: tuple[float, f
         win_best[take] = dist[take]
         win_ids[take] = k + 1
     return StreetMap(ids=ids, origin=(float(origin[0]), float(origin[1])), cell=float(cell))
+
+
+def _check_map_size(size: tuple[float, float], cell: float, extent_x: float, extent_z: float) -> None:
+    """``ValueError`` (one line, naming ``--map-cell``) for a grid past :data:`MAX_MAP_SIZE` texels per
+    side, before anything is allocated; ``extent_*``: the streets' world box (m), for the advice."""
+    w, h = float(size[0]), float(size[1])
+    if w <= MAX_MAP_SIZE and h <= MAX_MAP_SIZE:
+        return
+    # with the origin on a multiple of the cell, ceil(extent / c) + 1 <= MAX_MAP_SIZE cells hold the box
+    need = max(extent_x, extent_z) / (MAX_MAP_SIZE - 1)
+    fit = float(f"{need:.3g}")
+    fit = fit if fit >= need else float(f"{need * 1.001:.3g}")
+    raise ValueError(f"street map (--map-cell, map_cell) at cell {cell:g} m would be {w:.0f} x {h:.0f} texels, past "
+                     f"{MAX_MAP_SIZE} per side (the texture limit of most GPUs); use a cell of at least {fit:g} m")
 
 
 @dataclass(frozen=True)
