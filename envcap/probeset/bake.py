@@ -195,7 +195,7 @@ def bake_probe_set(
     if ladder_mode not in LADDER_MODES or (ladder_mode != "paper" and not filter_levels):
         raise ValueError(f"ladder mode (--ladder) must be one of {list(LADDER_MODES)} (a rung ladder needs filtered levels), got {ladder_mode!r}")
     count = sum(probe_count(st, spacing) for st in scene.streets)  # validates the spacing
-    estimate = estimate_bake(count, resolution, filter_levels=filter_levels,
+    estimate = estimate_bake(count, resolution, filter_levels=filter_levels, quality=quality,
                              rungs_per_level=RUNGS_PER_LEVEL.get(ladder_mode, 0), writers=writers)
     check_bake_cost(estimate, sum(st.length for st in scene.streets), spacing, max_probes)
     terrain = GroundHeights(scene.mesh) if any(st.follow_terrain for st in scene.streets) else None

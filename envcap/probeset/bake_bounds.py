@@ -6,12 +6,14 @@ anything, so that a request that would run away with the machine (``--resolution
 texture size, a mesh whose distances overflow float32) fails at once with one line that says
 what was asked, what it would cost and which option changes it.
 
-The cost model (:func:`estimate_bake`) was measured on this repository's bakes with llvmpipe
-(Mesa's CPU OpenGL, 2 cores): peak resident memory and wall time of ``envcap capture`` for
-``planes`` at 256^2 x 1 probe, ``canyon`` at 64^2 x 120, 128^2 x 30 and 16^2 x 600 probes;
-the model is within 5 % of the measured peaks (docs/reliability.md, Limits).  Memory is
-checked against :func:`envcap.core.budget.memory_limit` (``ENVCAP_MAX_MEMORY`` or the memory
-available), the count against :data:`envcap.probeset.placement.MAX_PROBES`.
+The cost model (:func:`estimate_bake`) was fitted to the peak resident memory (``/usr/bin/time``)
+and wall time of ``envcap capture`` with llvmpipe (Mesa's CPU OpenGL, 2 cores): ``canyon`` and
+``avenue`` at 16^2 to 256^2 and 25 to 120 probes, ``--quality composed`` (the CLI's) and
+``default``; the estimate covers the whole process (the Python, numpy and GL baseline included)
+and stays above every measured peak, within 1.04-1.23x for the composed filter and 1.08-1.25x
+for the others (docs/reliability.md, Limits, has the table and the command).  Memory is checked
+against :func:`envcap.core.budget.memory_limit` (``ENVCAP_MAX_MEMORY`` or the memory available),
+the count against :data:`envcap.probeset.placement.MAX_PROBES`.
 """
 
 from __future__ import annotations
@@ -37,17 +39,27 @@ GEOMETRY_LIMIT_M = math.sqrt(FLOAT32_MAX / 12.0)
 squared distance between two such points (3 components of up to twice it) stays below float32's
 maximum.  Past it the capture's distances are ``inf`` (the bake used to fail only when writing)."""
 
-# Peak resident bytes per level-0 texel of the probe array (L x 6 x N^2), on top of what the
-# process holds when the bake starts (the scene).  Capture: RGBA float32 + distance float32 +
-# back-facing flag = 21 B.  Prefilter: the float64 copy of all cubes (32 B; 64 B while it is
-# stacked), the float32 chain (16 B x 4/3), and per batch of cubes its pyramid, centroid
-# directions and GL buffers (about 182 B, fitted).  The write stage (half-float copies) peaks lower.
+# Peak resident bytes of the process: what it holds before the bake (Python, numpy, the GL context
+# and capture target, a bundled scene: 187 MB measured at canyon 16^2 x 30), plus per level-0 texel
+# of the probe array (L x 6 x N^2) what the bake keeps and per texel of one prefilter batch (64 MiB
+# of float32 RGBA level 0) its transients, plus per sky texel (6 x N^2) the sky's cubes and filter.
+_BASE_BYTES = 200e6
+# ``quality="composed"`` (the CLI's): kept, the capture (RGBA float32 + distance float32 +
+# back-facing flag = 21 B) whose RGBA is level 0 of the chain, and levels 1.. written in place
+# (16 B x 1/3): 26.3 B, measured 26.4; per batch texel 42 B and per sky texel 71 B fitted; rounded up.
+_COMPOSED_KEPT_B = 28.0
+_COMPOSED_BATCH_B = 48.0
+_COMPOSED_SKY_B = 80.0
+# Other qualities (envcap.prefilter.fast): the capture, a float64 stack of the checked cubes and the
+# float32 chain (21 + 32 + 16 x 4/3 B kept; 64 B while it is stacked), per batch texel its pyramid,
+# centroid directions and GL buffers (200 B, measured ~190-210), per sky texel 260 B (fitted ~200),
+# above the measured peaks by 8-25 % (docs/reliability.md).
 _CAPTURE_B = 21.0
 _STACK_B = 64.0
 _FILTER_KEPT_B = 21.0 + 32.0 + 16.0 * 4.0 / 3.0
-_BATCH_B = 182.0
+_BATCH_B = 200.0
+_SKY_B = 260.0
 _UNFILTERED_B = 60.0          # filter_levels=False: capture, its float32 copy, the write
-_SKY_B = 260.0                # per sky texel (6 x N^2): the RGB and RGBA cubes and their filter
 _PREFILTER_BATCH_BYTES = 64 << 20  # the default ``batch_bytes`` of envcap.prefilter.prefilter_many
 # A rung ladder (ladder_mode != "paper") adds per rung layer (R per level) and level-0 texel: its
 # float32 RGBA levels down to 8^2 kept (16 B x 4/3) and, per chunk of the fast rung filter
@@ -56,7 +68,6 @@ _PREFILTER_BATCH_BYTES = 64 << 20  # the default ``batch_bytes`` of envcap.prefi
 _RUNG_KEPT_B = 16.0 * 4.0 / 3.0
 _RUNG_CHUNK_B = 33.0
 _RUNG_CHUNK_TEXELS = (64 << 20) / 16.0
-_GL_BYTES = 64 << 20          # a fresh GL context and the capture target
 # An opt-in writer adds its working memory on top (conservative: it runs after the bake's transients
 # are freed).  ``sky_visibility`` (envcap.prefilter.sky_visibility): per chunk of probes (one prefilter
 # batch, sky_visibility_chunk) the float64 6-channel stack, the filter's copy, pyramid and GL buffers
@@ -66,12 +77,15 @@ _GL_BYTES = 64 << 20          # a fresh GL context and the capture target
 _SKY_VIS_CHUNK_B = 400.0
 _SKY_VIS_KEPT_B = 80.0
 
-# Seconds at llvmpipe rates (2 CPU cores): per probe (draw setup, files) and per texel.
+# Seconds at llvmpipe rates (2 CPU cores): per probe (draw setup, files), per level-0 texel of
+# capture, filter and write (composed 1.0 us, fitted 0.6-1.0; other qualities 4.5 us, fitted 4.1),
+# per sky texel (fitted ~9 us).  The interpreter's start (~2 s) is not counted.
 _PROBE_S = 0.025 + 0.012
-_CAPTURE_TEXEL_S = 2e-6
-_FILTER_TEXEL_S = 12e-6
-_WRITE_TEXEL_S = 2.5e-6
-_SKY_TEXEL_S = 35e-6
+_COMPOSED_TEXEL_S = 1.0e-6
+_TEXEL_S = 4.5e-6
+_UNFILTERED_TEXEL_S = 4.5e-6
+_SKY_TEXEL_S = 10e-6
+_RUNG_TEXEL_S = 1.6e-6        # per rung layer and level-0 texel (fitted 1.4-1.6: canyon 64^2 x 60, 128^2 x 30, R = 4)
 
 BIG_BYTES = 1 << 30
 """A bake estimated past this peak memory (or :data:`BIG_SECONDS`) prints its estimate first."""
@@ -102,8 +116,8 @@ class BakeEstimate:
 
     ``probes``: probe count (a float: may be huge); ``resolution``: face size N (texels);
     ``texels``: level-0 texels of the probe array (``probes x 6 x N^2``); ``peak_bytes``: peak
-    resident memory added by the bake; ``seconds``: rough wall time at llvmpipe rates (a GPU is
-    faster).
+    resident memory of the process (its baseline before the bake included); ``seconds``: rough
+    wall time at llvmpipe rates (a GPU is faster).
     """
 
     probes: float
@@ -123,29 +137,35 @@ class BakeEstimate:
                 f"roughly {format_seconds(self.seconds)} at llvmpipe (CPU) rates, less on a GPU")
 
 
-def estimate_bake(probes: float, resolution: int, *, filter_levels: bool = True, rungs_per_level: int = 0,
-                  writers: Iterable[str] = ()) -> BakeEstimate:
+def estimate_bake(probes: float, resolution: int, *, filter_levels: bool = True, quality: str = "default",
+                  rungs_per_level: int = 0, writers: Iterable[str] = ()) -> BakeEstimate:
     """The cost model of a bake of ``probes`` probes at ``resolution`` texels per face
     (see the module docstring); every quantity is a float (``inf`` when past counting).
+    ``quality``: the prefilter's (``"composed"``, the CLI's default, holds far less than the others).
     ``rungs_per_level``: ``R`` of a rung ladder (``envcap capture --ladder``; 0: the paper's chain).
     ``writers``: the writers that will run on the result (names; ``sky_visibility`` adds its memory)."""
     n = float(resolution) if resolution < 1 << 1000 else math.inf
     face = 6.0 * _square(n)
     texels = probes * face
-    if filter_levels:
-        per_batch = max(1.0, math.floor(_PREFILTER_BATCH_BYTES / (face * 16.0))) if math.isfinite(face) else 1.0
-        batch = min(texels, per_batch * face)
+    per_batch = max(1.0, math.floor(_PREFILTER_BATCH_BYTES / (face * 16.0))) if math.isfinite(face) else 1.0
+    batch = min(texels, per_batch * face)
+    if filter_levels and quality == "composed":
+        peak = _COMPOSED_KEPT_B * texels + _COMPOSED_BATCH_B * batch + _COMPOSED_SKY_B * face
+        seconds = texels * _COMPOSED_TEXEL_S
+    elif filter_levels:
         peak = max((_CAPTURE_B + _STACK_B) * texels, (_CAPTURE_B + _FILTER_KEPT_B) * texels + _BATCH_B * batch)
-        seconds = texels * (_CAPTURE_TEXEL_S + _FILTER_TEXEL_S + _WRITE_TEXEL_S)
+        peak += _SKY_B * face
+        seconds = texels * _TEXEL_S
     else:
-        peak = _UNFILTERED_B * texels
-        seconds = texels * (_CAPTURE_TEXEL_S + _WRITE_TEXEL_S)
+        peak = _UNFILTERED_B * texels + _SKY_B * face
+        seconds = texels * _UNFILTERED_TEXEL_S
     if filter_levels and rungs_per_level > 0:
         peak += rungs_per_level * (_RUNG_KEPT_B * (texels + face) + _RUNG_CHUNK_B * min(texels, _RUNG_CHUNK_TEXELS))
+        seconds += rungs_per_level * texels * _RUNG_TEXEL_S
     if "sky_visibility" in set(writers):
         chunk = sky_visibility_chunk(int(resolution)) * face
         peak += _SKY_VIS_CHUNK_B * min(texels, chunk) + _SKY_VIS_KEPT_B * texels
-    peak += _SKY_B * face + _GL_BYTES
+    peak += _BASE_BYTES
     seconds += probes * _PROBE_S + face * _SKY_TEXEL_S
     return BakeEstimate(probes, int(resolution), texels, peak, seconds)
 
