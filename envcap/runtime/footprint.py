@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.runtime.glsl_math import dot3
 from envcap.runtime.limits import FAR, MAX_RATIO, MIN_DIST
-from envcap.runtime.parallax import check_along, clamp_to_street, exit_distance, parallax, plane_exits, tilted
+from envcap.runtime.parallax import check_along, clamp_to_street, exit_distance, parallax, plane_exits, plane_hit, tilted
 
 MIN_COS = 1.0e-4
 """Cosines of the hit angles below this are taken as this (grazing hits; the shift then clamps).
@@ -88,17 +88,8 @@ def footprint(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, along
               dtype: Any = np.float64) -> Footprint:
     """The footprint (:class:`Footprint`) of lobes around unit ``d`` from shading points ``x`` on
     the three planes of the probe at ``p`` (all broadcast; vectors ``(..., 3)``; meters)."""
-    x, d, p, planes = (np.asarray(a, dtype=dtype) for a in (x, d, p, planes))
-    shape = np.broadcast_shapes(x.shape, d.shape, p.shape, planes.shape[:-1] + (3,))
-    x, d, p = (np.broadcast_to(a, shape) for a in (x, d, p))
-    planes = np.broadcast_to(planes, shape[:-1] + planes.shape[-1:])
+    xc, d, p, planes, t, hit, rv, dp, ok = plane_hit(x, d, p, planes, along, dtype)
     one = dtype(1)
-    xc = clamp_to_street(x, planes, along, dtype)
-    t = exit_distance(xc, d, planes, along, dtype)
-    hit = t < dtype(FAR)
-    rv = (xc - p) + t[..., None] * d
-    dp = np.sqrt(dot3(rv, rv))
-    ok = hit & (dp > dtype(MIN_DIST))
     n = hit_normal(xc, d, planes, along, dtype)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         ratio = np.minimum(np.maximum(dp / np.maximum(t, dtype(MIN_DIST)), dtype(1.0 / MAX_RATIO)), dtype(MAX_RATIO))

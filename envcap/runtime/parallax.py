@@ -16,7 +16,7 @@ NaN or Inf for finite inputs; the fallbacks are the GLSL ones.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -133,6 +133,37 @@ def exit_distance(x: ArrayLike, d: ArrayLike, planes: ArrayLike, along: int, dty
     return np.minimum(np.minimum(tc, tg), dtype(FAR))
 
 
+class PlaneHit(NamedTuple):
+    """Where the lookup ray from ``x`` along ``d`` leaves the street (:func:`plane_hit`); arrays
+    broadcast to one shape ``(..., 3)`` (``planes``: ``(..., 3)`` or ``(..., 4)``)."""
+
+    x: NDArray       # the shading points, clamped into the street
+    d: NDArray       # the unit directions
+    p: NDArray       # the probe positions
+    planes: NDArray  # the planes
+    t: NDArray       # (...,) distance from x to the hit (m), FAR where none
+    hit: NDArray     # (...,) t < FAR
+    r: NDArray       # hit - p (m), not normalized
+    dp: NDArray      # (...,) |hit - p| (m)
+    ok: NDArray      # (...,) a hit at least MIN_DIST from the probe
+
+
+def plane_hit(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, along: int,
+              dtype: Any = np.float64) -> PlaneHit:
+    """The first plane hit of the rays from ``x`` along ``d`` seen from probes at ``p``: the
+    common start of :func:`parallax` and the footprint (:mod:`envcap.runtime.footprint`)."""
+    x, d, p, planes = (np.asarray(a, dtype=dtype) for a in (x, d, p, planes))
+    shape = np.broadcast_shapes(x.shape, d.shape, p.shape, planes.shape[:-1] + (3,))
+    x, d, p = (np.broadcast_to(a, shape) for a in (x, d, p))
+    planes = np.broadcast_to(planes, shape[:-1] + planes.shape[-1:])
+    xc = clamp_to_street(x, planes, along, dtype)
+    t = exit_distance(xc, d, planes, along, dtype)
+    hit = t < dtype(FAR)
+    r = (xc - p) + t[..., None] * d
+    dp = np.sqrt(dot3(r, r))
+    return PlaneHit(xc, d, p, planes, t, hit, r, dp, hit & (dp > dtype(MIN_DIST)))
+
+
 def parallax(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, along: int,
              dtype: Any = np.float64) -> tuple[NDArray, NDArray]:
     """Three-plane parallax: ``(r, ratio)`` for shading points ``x``, unit directions ``d``,
@@ -144,16 +175,7 @@ def parallax(x: ArrayLike, d: ArrayLike, p: ArrayLike, planes: ArrayLike, along:
     MIN_DIST of the probe -> ``(d, 1/MAX_RATIO)``; ``x`` on a plane -> |hit - x| taken as MIN_DIST.
     Points outside the street or below the ground are first clamped into it.
     """
-    x, d, p, planes = (np.asarray(a, dtype=dtype) for a in (x, d, p, planes))
-    shape = np.broadcast_shapes(x.shape, d.shape, p.shape, planes.shape[:-1] + (3,))
-    x, d, p = (np.broadcast_to(a, shape) for a in (x, d, p))
-    planes = np.broadcast_to(planes, shape[:-1] + planes.shape[-1:])
-    xc = clamp_to_street(x, planes, along, dtype)
-    t = exit_distance(xc, d, planes, along, dtype)
-    hit = t < dtype(FAR)
-    r = (xc - p) + t[..., None] * d
-    dp = np.sqrt(dot3(r, r))
-    ok = hit & (dp > dtype(MIN_DIST))
+    _, d, _, _, t, hit, r, dp, ok = plane_hit(x, d, p, planes, along, dtype)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = dp / np.maximum(t, dtype(MIN_DIST))
         ratio = np.minimum(np.maximum(ratio, dtype(1.0 / MAX_RATIO)), dtype(MAX_RATIO))
