@@ -102,7 +102,7 @@ class StreetExtent:
         along = street.along_index
         probes = street.probes_along()
         yaw, oxz = street.frame_yaw_deg, street.frame_origin_xz
-        s = world_to_frame(np.array([p.position for p in probes], np.float64), yaw, oxz)[:, along]
+        s = street.frame_positions(probes)[:, along]
         pl = street.planes
         return StreetExtent(street.name, along, street.cross_index, s, float(pl.facade_min),
                             float(pl.facade_max), float(pl.ground), float(street.start), float(street.end),

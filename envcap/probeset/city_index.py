@@ -37,7 +37,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from envcap import __version__
-from envcap.core.street_frame import OptionalFrame, frame_to_world, world_to_frame
+from envcap.core.street_frame import OptionalFrame, frame_to_world
 from envcap.probeset.float32_range import check_number_ranges
 from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
 from envcap.probeset.manifest import Files, Level, LobeTable, Manifest, SceneInfo, SkyInfo, Street, Timings
@@ -211,9 +211,7 @@ def street_frame_origin(st: Street) -> tuple[float, float, float]:
     world's for a street without a frame): its probes' frame-coordinate box centre rounded to
     whole kilometres (:func:`envcap.scene.model.local_origin`, as the runtime's
     ``street_origin`` of the street's frame positions)."""
-    pos = np.array([p.position for p in st.probes], dtype=np.float64).reshape(-1, 3)
-    if st.framed:
-        pos = world_to_frame(pos, st.frame_yaw_deg, st.frame_origin_xz)
+    pos = st.frame_positions()
     o = local_origin(pos.min(axis=0), pos.max(axis=0))
     return float(o[0]), float(o[1]), float(o[2])
 

@@ -124,10 +124,17 @@ class Street(OptionalFrame):
         """World axis index across the street: 2 (z) or 0 (x)."""
         return 2 - self.along_index
 
+    def frame_positions(self, probes: tuple[Probe, ...] | list[Probe] | None = None) -> Any:
+        """``(P, 3)`` float64 positions (m) of ``probes`` (default: all, in layer order) in the
+        street's frame (:func:`envcap.core.street_frame.world_to_frame`; the world's when it has none)."""
+        probes = self.probes if probes is None else probes
+        return world_to_frame([p.position for p in probes] or [(0.0, 0.0, 0.0)], self.frame_yaw_deg,
+                              self.frame_origin_xz)[:len(probes)]
+
     def probes_along(self) -> list[Probe]:
         """The probes sorted by their coordinate along the street (frame x for a framed street;
         the runtime's order)."""
-        pos = world_to_frame([p.position for p in self.probes] or [(0.0, 0.0, 0.0)], self.frame_yaw_deg, self.frame_origin_xz)
+        pos = self.frame_positions()
         return [self.probes[i] for i in sorted(range(len(self.probes)), key=lambda i: pos[i, self.along_index])]
 
 

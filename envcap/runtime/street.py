@@ -267,7 +267,7 @@ class StreetProbes:
             if not fitted[i, 1] > fitted[i, 0]:
                 fitted[i], fitted_slopes[i] = nominal[i], slopes[i]
         yaw, oxz = street.frame_yaw_deg, street.frame_origin_xz
-        pos = world_to_frame(np.array([q.position for q in probes], dtype=np.float64), yaw, oxz)
+        pos = street.frame_positions(probes)
         return StreetProbes(street.name, street.along_index, pos, np.array([q.layer for q in probes], dtype=np.int64),
                             nominal, fitted, yaw, oxz, slopes, fitted_slopes)
 
