@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.city.street_map_file import read_street_map
 from envcap.probeset.city_index import INDEX_FILE, CityIndex, read_city_index
+from envcap.core.street_frame import yaw_cos_sin
 from envcap.runtime.street_map import StreetMap, StreetTable, street_table
 
 
@@ -98,8 +99,7 @@ class CityMap:
         ``x``, ``z`` (m, broadcastable)."""
         ids = self.map.lookup(x, z).astype(np.int64)
         got = {k: v[ids] for k, v in self.table().items()}
-        a = np.radians(got["yaw_deg"])
-        c, s = np.cos(a), np.sin(a)
+        c, s = yaw_cos_sin(got["yaw_deg"])
         with np.errstate(invalid="ignore", over="ignore"):
             dx = np.asarray(x, np.float64) - got["origin_xz"][..., 0]
             dz = np.asarray(z, np.float64) - got["origin_xz"][..., 1]

@@ -25,13 +25,36 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 
+_QUARTER_TURNS = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+"""(cos, sin) at 0, 90, 180 and 270 degrees, exactly."""
+
+
+def yaw_cos_sin(yaw_deg: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(cos, sin)`` of ``yaw_deg`` degrees (any shape, float64), exact at every multiple of 90
+    degrees: 0 and +-1 there, not the 6e-17 of ``cos(radians(90))``, so that a direction exactly
+    along a street turned by 90, 180 or 270 degrees stays exactly parallel to its facades (as in
+    the same street without a frame).  Elsewhere ``cos``/``sin`` of the angle reduced into
+    (-360, 360) by ``fmod`` (exact, sign kept: small angles keep their precision).  Non-finite
+    angles give NaN (callers check first)."""
+    a = np.asarray(yaw_deg, np.float64)
+    with np.errstate(invalid="ignore"):
+        r = np.fmod(a, 360.0)                            # exact for finite a; NaN for +-inf, NaN
+        quarter = np.fmod(r, 90.0) == 0.0
+        k = np.where(quarter, r // 90.0, 0).astype(np.int64) % 4
+    t = np.radians(r)
+    c = np.where(quarter, _QUARTER_TURNS[k, 0], np.cos(t))
+    s = np.where(quarter, _QUARTER_TURNS[k, 1], np.sin(t))
+    return c, s
+
+
 def plan_rotation(yaw_deg: float) -> NDArray[np.float64]:
     """(3, 3) float64 matrix ``R`` taking world vectors to the frame of a street at ``yaw_deg``
-    (see the module docstring); orthonormal, det +1.  ``ValueError`` for a non-finite angle."""
+    (see the module docstring); orthonormal, det +1, exact at multiples of 90 degrees
+    (:func:`yaw_cos_sin`).  ``ValueError`` for a non-finite angle."""
     if not (isinstance(yaw_deg, (int, float, np.floating)) and math.isfinite(yaw_deg)):
         raise ValueError(f"street yaw must be a finite number of degrees, got {yaw_deg!r}")
-    a = math.radians(float(yaw_deg))
-    c, s = math.cos(a), math.sin(a)
+    cs = yaw_cos_sin(float(yaw_deg))
+    c, s = float(cs[0]), float(cs[1])
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 

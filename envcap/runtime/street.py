@@ -26,7 +26,7 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from envcap.core.street_frame import to_frame, world_to_frame
+from envcap.core.street_frame import to_frame, world_to_frame, yaw_cos_sin
 from envcap.probeset import manifest
 from envcap.runtime.limits import MAX_LEVELS, MAX_PROBES
 from envcap.runtime.mip import lobe_table
@@ -94,8 +94,8 @@ class RuntimeStreet:
     @property
     def frame(self) -> NDArray[np.float64]:
         """``(cos yaw, sin yaw)`` (GLSL ``EnvcapStreet.frame``), float64."""
-        a = np.radians(float(self.yaw_deg))
-        return np.array([np.cos(a), np.sin(a)]) if self.yaw_deg else np.array([1.0, 0.0])
+        c, s = yaw_cos_sin(float(self.yaw_deg))
+        return np.array([float(c), float(s)])
 
     def to_frame(self, x: ArrayLike) -> NDArray[np.float64]:
         """World points ``x`` (..., 3) in the street's frame (float64; unchanged when not framed)."""

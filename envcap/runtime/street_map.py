@@ -52,7 +52,7 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from envcap.core.street_frame import world_to_frame
+from envcap.core.street_frame import world_to_frame, yaw_cos_sin
 from envcap.probeset.city_index import street_bounds
 from envcap.probeset.manifest import Street
 
@@ -234,8 +234,7 @@ def street_table(yaw_deg: ArrayLike, origin_xz: ArrayLike, local_origin: ArrayLi
     n = yaw.size
     o = np.asarray(origin_xz, np.float64).reshape(n, 2)
     lo = np.asarray(local_origin, np.float64).reshape(n, 3)
-    a = np.radians(yaw)
-    c, s = np.cos(a), np.sin(a)
+    c, s = yaw_cos_sin(yaw)
     mx, mz = (float(v) for v in np.asarray(map_origin, np.float32))   # the origin GLSL subtracts
     vx, vz = mx - o[:, 0], mz - o[:, 1]
     frames = np.zeros((n + 1, 2, 4), np.float64)
