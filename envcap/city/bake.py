@@ -36,9 +36,10 @@ from envcap.city.shard import SceneSource, ShardBaker, ShardJob, is_finished, lo
 from envcap.city.street_map_file import write_street_map
 from envcap.formats.writer import MANIFEST_FILE
 from envcap.outputs import OutputBusy, atomic_output_file, claim_output_dir
+from envcap.outputs.atomic import report_moved_aside
 from envcap.outputs.lock import OutputLock
-from envcap.outputs.marker import MARKER_NAME, read_marker
-from envcap.outputs.swap import remove_path
+from envcap.outputs.marker import MARKER_NAME, is_replaceable, read_marker
+from envcap.outputs.swap import move_aside, remove_path
 from envcap.probeset.city_index import INDEX_FILE, StreetMapInfo, build_city_index, city_index_text
 from envcap.probeset.manifest import Street, read_manifest
 from envcap.probeset.planes import Planes
@@ -146,6 +147,9 @@ def bake_city(source: SceneSource, out: str | os.PathLike[str], settings: BakeSe
     street_map([_nominal(st) for st in scene.streets], map_cell)   # the map's cell fits every street
     with claim_output_dir(out, kind=KIND, inputs=inputs, force=force) as claim:
         city = claim.path
+        if not is_replaceable(city):        # only with force: a city bakes in place, so set it aside now
+            claim.moved_aside = move_aside(city)
+            report_moved_aside(city, claim.moved_aside)
         city.mkdir(exist_ok=True)
         _write_marker(city)
         (city / SHARDS_DIR).mkdir(exist_ok=True)

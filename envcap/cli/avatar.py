@@ -4,7 +4,8 @@ proxy spheres and per-vertex blockers of a skinned glTF 2.0 avatar, written into
 ``OUT`` gets the input's content plus the vertex attributes ``_ENVCAP_BLOCKERS`` /
 ``_ENVCAP_BLOCKER_WEIGHTS`` and the extras of :mod:`envcap.dynamic.avatar_attributes`, written to
 a temporary name and renamed at the end.  ``OUT`` may never be ``IN``; an existing ``OUT`` is
-replaced only when envcap wrote it (``asset.extras.envcap == "avatar"``) or with ``--force``.
+replaced only when envcap wrote it (``asset.extras.envcap == "avatar"``); with ``--force`` another
+file there is moved aside (``NAME.envcap-replaced-YYYYmmdd-HHMMSS.glb``), never deleted.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--animation", type=int, default=0, help="animation whose keyframes are used (default 0)")
     p.add_argument("--exclude-weight", type=float, default=0.0,
                    help="a vertex ignores the bones it is skinned to with a weight above this (default 0: all)")
-    p.add_argument("--force", action="store_true", help="overwrite OUT even if envcap did not write it")
+    p.add_argument("--force", action="store_true",
+                   help="replace OUT even if envcap did not write it (that file is renamed beside it, never deleted)")
     p.set_defaults(func=run)
 
 
@@ -45,7 +47,7 @@ def check_target(source: Path, target: Path, force: bool) -> None:
         raise OutputRefused(f"output {target} is a directory")
     if target.exists() and not force and not is_envcap_avatar(target):
         raise OutputRefused(f"{target} exists and was not written by envcap avatar; choose another file, "
-                            f"or use --force to overwrite it")
+                            f"or use --force to move it aside")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -54,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
     check_target(source, target, args.force)
     if not source.is_file():
         raise FileNotFoundError(f"input avatar {source} does not exist")
-    with atomic_output_file(target) as tmp:
+    foreign = target.exists() and not is_envcap_avatar(target)     # only with --force: moved aside
+    with atomic_output_file(target, keep_existing=foreign) as tmp:
         avatar, spheres, blockers = write_annotated(source, tmp, k=args.k, reduce=args.reduce,
                                                     animation=args.animation, exclude_weight=args.exclude_weight)
     print(f"{target}: {len(avatar.positions)} vertices, {avatar.joint_count} joints, "

@@ -10,8 +10,10 @@ from typing import Any
 
 from envcap.scene import scene_path
 
-FORCE_HELP = ("replace an existing non-empty --out directory even if envcap did not write it "
-              "(an input or the working directory is never replaced)")
+FORCE_HELP = ("replace an existing non-empty --out directory even if envcap did not write it: that "
+              "directory is renamed to NAME.envcap-replaced-YYYYmmdd-HHMMSS beside it, never deleted "
+              "(an input, the working directory, the home directory, a mount point or a top-level "
+              "system directory is never an output)")
 
 
 def add_force_argument(p: argparse.ArgumentParser) -> None:

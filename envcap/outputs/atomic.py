@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,8 +18,14 @@ from pathlib import Path
 from envcap.outputs.claim import OutputClaim, claim_output_dir
 from envcap.outputs.deferred_signals import deferred_signals
 from envcap.outputs.guard import check_replaceable
-from envcap.outputs.marker import write_marker
-from envcap.outputs.swap import install, make_temp_dir, remove_path
+from envcap.outputs.marker import is_replaceable, write_marker
+from envcap.outputs.swap import install, make_temp_dir, move_aside, remove_path
+
+
+def report_moved_aside(what: Path, aside: Path) -> None:
+    """The one line that says where ``--force`` put an output envcap did not write."""
+    print(f"envcap: note: {what} was not written by envcap: moved it to {aside} (nothing was deleted)",
+          file=sys.stderr, flush=True)
 
 
 def _umask() -> int:
@@ -42,7 +49,11 @@ def _staged(claim: OutputClaim) -> Iterator[Path]:
         write_marker(tmp, claim.kind)
         _publish_mode(tmp, True)
         check_replaceable(claim.path, claim.force)  # nothing foreign appeared while we worked
-        install(tmp, claim.path)
+        foreign = not is_replaceable(claim.path)     # only with force: moved aside, never removed
+        aside = install(tmp, claim.path, keep_old=foreign)
+        if aside is not None:
+            claim.moved_aside = aside
+            report_moved_aside(claim.path, aside)
     except BaseException:
         with deferred_signals():
             remove_path(tmp)
@@ -71,8 +82,12 @@ def atomic_output_dir(target: str | os.PathLike[str], *, kind: str = "output", f
 
 
 @contextlib.contextmanager
-def atomic_output_file(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a temporary file path in the same directory that becomes ``path`` on success."""
+def atomic_output_file(path: str | os.PathLike[str], *, keep_existing: bool = False) -> Iterator[Path]:
+    """Yield a temporary file path in the same directory that becomes ``path`` on success.
+
+    ``keep_existing``: an existing ``path`` (a file envcap did not write, replaced with
+    ``--force``) is moved aside (:func:`~envcap.outputs.swap.move_aside`, reported on stderr)
+    instead of overwritten."""
     final = Path(path).resolve()
     final.parent.mkdir(parents=True, exist_ok=True)
     fd, name = tempfile.mkstemp(prefix=f".{final.name}.tmp-", dir=final.parent, suffix=final.suffix)
@@ -85,4 +100,8 @@ def atomic_output_file(path: str | os.PathLike[str]) -> Iterator[Path]:
             tmp.unlink(missing_ok=True)
         raise
     _publish_mode(tmp, False)
-    os.replace(tmp, final)
+    with deferred_signals():
+        aside = move_aside(final) if keep_existing and os.path.lexists(final) else None
+        os.replace(tmp, final)
+    if aside is not None:
+        report_moved_aside(final, aside)

@@ -44,6 +44,8 @@ class OutputClaim(os.PathLike):
     kind: str
     force: bool
     lock: OutputLock = field(repr=False)
+    moved_aside: Path | None = None
+    """Where ``--force`` moved an output envcap did not write (set when the new one is in place)."""
 
     def __fspath__(self) -> str:
         return str(self.path)

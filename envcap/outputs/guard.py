@@ -5,8 +5,13 @@ The rules (``OutputRefused`` says which one a path breaks):
 * the output is not a file, and the closest existing folder above it is a writable directory;
 * the output is never an input, an ancestor of an input, the working directory or an ancestor
   of it, whatever ``force`` says;
+* the output is never the file system root, an existing top-level directory (``/etc``,
+  ``/usr``, ``/home``, ...), a mount point, the home directory or a folder above it, whatever
+  ``force`` says (:func:`check_protected`);
 * an existing non-empty output directory is replaced only when envcap wrote it (it carries the
-  marker of :mod:`envcap.outputs.marker`), or with ``force``.
+  marker of :mod:`envcap.outputs.marker`); with ``force`` one that envcap did not write is
+  moved aside to ``NAME.envcap-replaced-YYYYmmdd-HHMMSS`` (:func:`envcap.outputs.swap.move_aside`),
+  never deleted.
 """
 
 from __future__ import annotations
@@ -44,10 +49,42 @@ def check_not_inputs(final: Path, inputs: Iterable[str | os.PathLike[str]]) -> N
                                 f"(--force does not change this)")
 
 
+def protected_reason(final: Path, *, root: Path | None = None, home: Path | None = None) -> str | None:
+    """Why the absolute, resolved output path ``final`` may never be written, ``--force`` or not;
+    ``None`` when it may.  ``root``: the file system root (default: ``final``'s anchor, ``/``);
+    ``home``: the user's home directory (default: ``Path.home()`` resolved, when there is one).
+    Tests pass temporary stand-ins for both."""
+    root = Path(final.anchor) if root is None else root
+    if final == root:
+        return "is the file system root"
+    if home is None:
+        try:
+            home = Path.home().resolve()
+        except (RuntimeError, KeyError, OSError):
+            home = None
+    if home is not None and _contains(final, home):
+        return "is the home directory" if final == home else f"contains the home directory {home}"
+    if final.parent == root and final.exists():
+        return "is a top-level system directory"
+    if final.exists() and os.path.ismount(final):
+        return "is a mount point"
+    return None
+
+
+def check_protected(final: Path, *, root: Path | None = None, home: Path | None = None) -> None:
+    """Refuse (:class:`OutputRefused`) an output that :func:`protected_reason` names."""
+    why = protected_reason(final, root=root, home=home)
+    if why is not None:
+        raise OutputRefused(f"output directory {final} {why}; choose another output directory "
+                            f"(--force does not change this)")
+
+
 def check_output_target(final: Path, inputs: Iterable[str | os.PathLike[str]] = ()) -> None:
     """Check, before any work, that the output directory ``final`` (from :func:`resolve_output`)
-    may be written: not a file, not an input or the working directory or above them, and the
-    closest existing folder above it a writable directory.  Raises :class:`OutputRefused`."""
+    may be written: not protected (:func:`check_protected`), not a file, not an input or the
+    working directory or above them, and the closest existing folder above it a writable
+    directory.  Raises :class:`OutputRefused`."""
+    check_protected(final)
     cwd = Path.cwd().resolve()
     if _contains(final, cwd):
         what = "is" if final == cwd else "contains"
@@ -74,11 +111,12 @@ def check_writable(folder: Path) -> None:
 
 
 def check_replaceable(final: Path, force: bool) -> None:
-    """Refuse to replace a non-empty directory that envcap did not write, unless ``force``."""
+    """Refuse to replace a non-empty directory that envcap did not write, unless ``force`` (which
+    moves it aside when the new output is in place)."""
     if not force and not is_replaceable(final):
         raise OutputRefused(f"output directory {final} is not empty and was not written by envcap "
                             f"(it has no {MARKER_NAME} file); choose another output directory, "
-                            f"or use --force to replace it")
+                            f"or use --force to move it aside (it is renamed, never deleted)")
 
 
 def check_file_replaceable(path: Path, force: bool) -> None:
@@ -86,4 +124,4 @@ def check_file_replaceable(path: Path, force: bool) -> None:
     :data:`~envcap.outputs.marker.PNG_MARK`), unless ``force``."""
     if not force and path.exists() and not png_marked(path):
         raise OutputRefused(f"{path} exists and was not written by envcap (no '{PNG_MARK[0]}: {PNG_MARK[1]}' "
-                            f"PNG text); choose another folder, or use --force to overwrite it")
+                            f"PNG text); choose another folder, or use --force to move it aside")

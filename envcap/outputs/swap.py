@@ -6,7 +6,10 @@ Names beside an output ``NAME`` (all in its folder, all envcap's own):
 * ``.NAME.tmp-XXXXXXXX/`` (8 hex digits): a new output being written (:func:`make_temp_dir`);
 * ``.NAME.old/``: the old output set aside during a two-step swap;
 * ``.NAME.swap``: the journal of a two-step swap, present from before the first rename until
-  after the second.
+  after the second;
+* ``NAME.envcap-replaced-YYYYmmdd-HHMMSS[-K]``: an output that envcap did NOT write, replaced
+  with ``--force``: moved aside (never deleted), visible, for the user to keep or remove
+  (:func:`move_aside`).
 
 On Linux the swap is one ``renameat2(RENAME_EXCHANGE)`` system call: the output path names the
 old directory, then the new one, never nothing; the old one then lies under the temporary name
@@ -26,11 +29,13 @@ import re
 import secrets
 import shutil
 import sys
+import time
 from pathlib import Path
 
 from envcap.outputs.deferred_signals import deferred_signals
 
 _AT_FDCWD = -100
+_RENAME_NOREPLACE = 1
 _RENAME_EXCHANGE = 2
 _UNSUPPORTED = {errno.EINVAL, errno.ENOSYS, errno.ENOTSUP, errno.EOPNOTSUPP}
 
@@ -73,6 +78,46 @@ def make_temp_dir(final: Path) -> Path:
             continue
 
 
+def replaced_name(path: Path, when: float | None = None, k: int = 1) -> Path:
+    """The name a foreign output ``path`` is moved to when ``--force`` replaces it:
+    ``NAME.envcap-replaced-YYYYmmdd-HHMMSS`` beside it (local time ``when``, default now; a
+    file keeps its extension last: ``walker.envcap-replaced-...glb``), ``-K`` added for ``k > 1``."""
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(when))
+    tag = f".envcap-replaced-{stamp}" + (f"-{k}" if k > 1 else "")
+    if path.is_dir() or not path.suffix:
+        return path.with_name(path.name + tag)
+    return path.with_name(path.stem + tag + path.suffix)
+
+
+def _rename_noreplace(src: Path, dst: Path) -> None:
+    """Rename ``src`` to ``dst``; ``FileExistsError`` if ``dst`` exists (``renameat2`` with
+    ``RENAME_NOREPLACE`` where the system has it, else a check just before the rename)."""
+    if _RENAMEAT2 is not None:
+        if _RENAMEAT2(_AT_FDCWD, os.fsencode(src), _AT_FDCWD, os.fsencode(dst), _RENAME_NOREPLACE) == 0:
+            return
+        err = ctypes.get_errno()
+        if err not in _UNSUPPORTED:
+            raise OSError(err, os.strerror(err), str(src), None, str(dst))
+    if os.path.lexists(dst):
+        raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(dst))
+    os.rename(src, dst)
+
+
+def move_aside(path: Path) -> Path:
+    """Move the file or directory ``path`` (one envcap did not write) to :func:`replaced_name`
+    beside it, never over an existing name; return where it went.  Nothing is copied or
+    deleted: one rename in the same folder."""
+    now = time.time()
+    for k in range(1, 1000):
+        target = replaced_name(path, now, k)
+        try:
+            _rename_noreplace(path, target)
+            return target
+        except FileExistsError:
+            continue
+    raise OSError(f"cannot move {path} aside: 999 names {replaced_name(path, now)}-K are taken")
+
+
 def exchange(a: Path, b: Path) -> bool:
     """Swap the names ``a`` and ``b`` in one system call; False where the system or the file
     system cannot (nothing is changed then)."""
@@ -94,19 +139,30 @@ def remove_path(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-def install(tmp: Path, final: Path, *, use_exchange: bool = True) -> None:
-    """Make the complete directory ``tmp`` the output ``final`` and remove the old output.
+def install(tmp: Path, final: Path, *, use_exchange: bool = True, keep_old: bool = False) -> Path | None:
+    """Make the complete directory ``tmp`` the output ``final`` and remove the old output, or,
+    with ``keep_old`` (an old output envcap did not write), move the old one aside
+    (:func:`move_aside`) and return where it went (``None`` otherwise).
 
     The caller holds the output's lock.  ``use_exchange=False`` takes the two-step path even
-    where the one-call exchange exists.
+    where the one-call exchange exists.  A kill between the two renames of ``keep_old`` leaves
+    the old output under its new name and no output: nothing is lost.
     """
     with deferred_signals():
         if not final.exists():
             os.rename(tmp, final)
-            return
+            return None
+        if keep_old:
+            aside = move_aside(final)
+            try:
+                os.rename(tmp, final)
+            except BaseException:
+                os.rename(aside, final)
+                raise
+            return aside
         if use_exchange and exchange(tmp, final):
             remove_path(tmp)  # now the old output
-            return
+            return None
         journal, aside = journal_path(final), aside_path(final)
         remove_path(aside)
         journal.touch()
@@ -119,6 +175,7 @@ def install(tmp: Path, final: Path, *, use_exchange: bool = True) -> None:
             raise
         journal.unlink()
         remove_path(aside)
+    return None
 
 
 def recover(final: Path) -> list[Path]:

@@ -16,7 +16,7 @@ from PIL import Image, PngImagePlugin
 from envcap.core.resources import shader_source
 from envcap.outputs import atomic_output_file
 from envcap.outputs.guard import check_file_replaceable
-from envcap.outputs.marker import PNG_MARK
+from envcap.outputs.marker import PNG_MARK, png_marked
 from envcap.scene.model import Scene, Street
 
 
@@ -112,8 +112,10 @@ def save_previews(ctx: Any, scene: Scene, path: str | Path, width: int = 640, *,
     """Write one PNG: the first street's street-level view above a top-down view of the streets.
 
     The PNG carries envcap's mark (:data:`envcap.outputs.marker.PNG_MARK`); an existing ``path``
-    without it is not overwritten unless ``force`` (:class:`~envcap.outputs.guard.OutputRefused`)."""
+    without it is not overwritten: refused (:class:`~envcap.outputs.guard.OutputRefused`), or with
+    ``force`` moved aside (renamed beside it, never deleted)."""
     check_file_replaceable(Path(path), force)
+    foreign = Path(path).exists() and not png_marked(Path(path))
     top, aspect = top_view_matrix(scene)
     th = int(min(max(round(width / max(aspect, 1e-3)), 160), 640))
     parts = []
@@ -122,7 +124,7 @@ def save_previews(ctx: Any, scene: Scene, path: str | Path, width: int = 640, *,
         parts.append(render(ctx, scene, street_view_matrix(scene.streets[0], width / sh), (width, sh)))
     parts.append(render(ctx, scene, top, (width, th)))
     img = np.concatenate(parts, axis=0)
-    with atomic_output_file(path) as tmp:
+    with atomic_output_file(path, keep_existing=foreign) as tmp:
         info = PngImagePlugin.PngInfo()
         info.add_text(*PNG_MARK)
         Image.fromarray(img).save(tmp, format="PNG", optimize=True, pnginfo=info)

@@ -6,6 +6,7 @@ folder exactly as it was.
 """
 
 import os
+import re
 import shutil
 import signal
 import time
@@ -53,6 +54,15 @@ def test_a_foreign_folder_is_refused_and_replaced_only_with_force(tmp_path):
     r = run_envcap("capture", "planes", "--out", mine, *BAKE, "--force")
     assert r.returncode == 0, r.stderr
     assert (mine / MARKER_NAME).is_file() and (mine / "probes.ktx2").is_file() and not (mine / "holiday.jpg").exists()
+    # --force moved the folder aside, whole, and said where (issue 19: it used to delete it)
+    aside = [p for p in tmp_path.iterdir() if p.name.startswith("photos.envcap-replaced-")]
+    assert len(aside) == 1 and re.fullmatch(r"photos\.envcap-replaced-\d{8}-\d{6}", aside[0].name)
+    assert tree_bytes(aside[0]) == {"holiday.jpg": b"precious"}
+    assert f"moved it to {aside[0]}" in r.stderr
+    # envcap's own output is then replaced in place, without --force and without a copy aside
+    r = run_envcap("capture", "planes", "--out", mine, *BAKE)
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["photos", aside[0].name])
 
 
 # Item 1: "--out = the folder that holds the scene file deletes the scene file" (was: exit 0,
@@ -134,6 +144,9 @@ def test_a_preview_png_envcap_did_not_write_is_not_overwritten(tmp_path):
     assert r.returncode == 0, r.stderr
     with Image.open(theirs) as img:
         assert img.info.get("Software") == "envcap"
+    kept = [p for p in tmp_path.iterdir() if p.name != theirs.name]   # theirs, moved aside by --force
+    assert len(kept) == 1 and re.fullmatch(r"scenes_planes\.envcap-replaced-\d{8}-\d{6}\.png", kept[0].name)
+    assert kept[0].read_bytes() == b"their picture"
     first = theirs.read_bytes()
     r = run_envcap("scenes", "planes", "--preview", tmp_path)  # its own file: replaced without --force
     assert r.returncode == 0, r.stderr
