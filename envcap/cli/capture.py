@@ -49,9 +49,11 @@ def add_bake_arguments(p: argparse.ArgumentParser, resolution: int, *, files: bo
     p.add_argument("--sky-visibility", action="store_true",
                    help="also write sky_visibility.ktx2: visibility moments that keep the composite right when the sky "
                         "changes after the bake (docs/lobes.md)")
-    p.add_argument("--inverse-distance", action="store_true",
-                   help="also write inverse_distance.ktx2: each probe's 1/distance (R16F), the texture the "
-                        "depth_refine method reads (docs/engines.md)")
+    p.add_argument("--inverse-distance", action=argparse.BooleanOptionalAction, default=None,
+                   help="inverse_distance.ktx2: each probe's 1/distance (R16F), the texture the depth_refine "
+                        "method reads and the distance channel 'envcap evaluate' needs for the depth-aware "
+                        "methods (docs/engines.md; default: on for a probe set, off for a city bake; "
+                        "--no-inverse-distance to skip)")
     p.add_argument("--scene-gltf", action="store_true",
                    help="also write scene.glb: the scene mesh near the streets as binary glTF, drawn by 'envcap view' (docs/viewer.md)")
     add_force_argument(p)
@@ -82,7 +84,8 @@ def bake_to_dir(args: argparse.Namespace, scene_name: str, out: str | os.PathLik
     t0 = time.perf_counter()
     scene = load_scene(scene_name)
     writers = ([n for n in default_writer_names() if n not in ("exr", "previews")]   # those two: --exr, --previews
-               + [w for w in ("webgl2", "latlong", "sky_visibility", "inverse_distance") if getattr(args, w, False)])
+               + [w for w in ("webgl2", "latlong", "sky_visibility") if getattr(args, w, False)]
+               + ([] if getattr(args, "inverse_distance", None) is False else ["inverse_distance"]))
     quiet = bool(getattr(args, "quiet", False))
     report = BakeProgress("off" if quiet else "auto")
     with registered_scene_writer(scene if getattr(args, "scene_gltf", False) else None) as scene_writer:
@@ -103,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--scene-gltf is for one scene's probe set, not a city bake")
         if getattr(args, "sky_visibility", False):
             raise ValueError("--sky-visibility is for one scene's probe set, not a city bake")
-        if getattr(args, "inverse_distance", False):
+        if getattr(args, "inverse_distance", None):      # None: the default, off for a city
             raise ValueError("--inverse-distance is for one scene's probe set, not a city bake")
         if getattr(args, "ladder", "paper") != "paper":
             raise ValueError("--ladder is for one scene's probe set, not a city bake (city shards hold the paper's chain)")

@@ -21,6 +21,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from envcap.formats.exr_cube import read_exr_cube
 from envcap.formats.ktx2 import read_ktx2
@@ -93,13 +94,27 @@ def fill_probe_set_dir(tmp: Path, probe_set: ProbeSet, writers: Iterable[str], *
     write_manifest(tmp / MANIFEST_FILE, replace(probe_set.manifest, files=files))
 
 
+def distance_from_inverse(path: Path, shape: tuple[int, int, int, int]) -> NDArray[np.float32]:
+    """The distance channel ``(L, 6, N, N)`` (m, float32; 0 where the probe sees the sky) from an
+    ``inverse_distance.ktx2`` (:mod:`envcap.formats.inverse_distance_writer`): ``1 / texel``,
+    within 2^-11 relative of the baked distance (half-float texels)."""
+    levels, info = read_ktx2(path)
+    if info["fmt"] != "r16f" or not info["layered"] or levels[0].shape[:4] != shape:
+        raise ValueError(f"{path.name}: expected an R16F cube-map array of shape {shape}, "
+                         f"got {info['fmt']} layered={info['layered']} {levels[0].shape[:4]}")
+    inv = levels[0][..., 0].astype(np.float64)
+    if not np.all(np.isfinite(inv)) or np.any(inv < 0):
+        raise ValueError(f"{path.name}: inverse distances must be finite and >= 0")
+    return np.where(inv > 0, 1.0 / np.where(inv > 0, inv, 1.0), 0.0).astype(np.float32)
+
+
 def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> ProbeSet:
     """Read a probe-set directory, or a city probe set (a directory with ``city.json``: its
     shards merged, :func:`read_city_probe_set`); check the manifest and the textures against it.
 
     Probe levels come back as float32 (from RGBA16F, exact), the sky as float32.  ``distance``
-    is read from the EXR files' Z channels when they exist (and ``distance`` is true), else
-    ``None``.  Raises ``FileNotFoundError`` for missing files and ``ValueError`` for bad content,
+    is read from the EXR files' Z channels when they exist (and ``distance`` is true), else from
+    ``inverse_distance.ktx2`` when it exists (:func:`distance_from_inverse`), else ``None``.  Raises ``FileNotFoundError`` for missing files and ``ValueError`` for bad content,
     one line naming the file: every number of the manifest within float32 range, every texel of
     ``probes.ktx2`` and ``sky.ktx2`` finite with RGB >= 0 and alpha in [0, 1]
     (:func:`envcap.probeset.probe_set.check_texels`: the layer and level at fault), distances
@@ -135,6 +150,8 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
                          f"got {sinfo['fmt']} layered={sinfo['layered']} with {sinfo['layers']} layers")
     check_texels(sky, rungs, str(root / files.sky))
     dist = None
+    if distance and not files.exr and files.extra.get("inverse_distance"):
+        dist = distance_from_inverse(root / files.extra["inverse_distance"], (layers, 6, n, n))
     if distance and files.exr:
         if len(files.exr) != layers:
             raise ValueError(f"{mpath}: files.exr must list one EXR per probe ({layers})")
