@@ -70,6 +70,7 @@ def read_street_map(path: str | os.PathLike[str], info: StreetMapInfo) -> Street
         raise ValueError(f"street map {path}: layerCount {s.layers}, levelCount {s.levels}; "
                          "a street map is one 2-D image of one level")
     if (s.width, s.height) != tuple(info.size):
-        raise ValueError(f"street map {path}: {s.width} x {s.height} cells, city.json says {info.size[0]} x {info.size[1]}")
+        raise ValueError(f"street map {path}: {s.width} x {s.height} cells, "
+                         f"city.json says {info.size[0]} x {info.size[1]}")
     ids = np.array(got.levels[0][0, 0, :, :, 0], dtype=np.uint16)
     return StreetMap(ids=ids, origin=(float(info.origin[0]), float(info.origin[1])), cell=float(info.cell))

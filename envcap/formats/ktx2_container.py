@@ -95,20 +95,14 @@ VK_FORMATS: dict[int, VkFormat] = {f.value: f for f in (R16_UINT, R16_SFLOAT, R1
                                                         R32_SFLOAT, R32G32B32A32_SFLOAT)}
 """Every vkFormat envcap writes, by value."""
 
-# Khronos Data Format constants (KDF §5; KTX-Software lib/dfdutils, KHR/khr_df.h)
-KHR_DF_VERSIONNUMBER_1_3 = 2
-KHR_DF_MODEL_RGBSDA = 1
-KHR_DF_PRIMARIES_UNSPECIFIED = 0
-KHR_DF_PRIMARIES_BT709 = 1
-KHR_DF_TRANSFER_UNSPECIFIED = 0
-KHR_DF_TRANSFER_LINEAR = 1
-KHR_DF_FLAG_ALPHA_PREMULTIPLIED = 1
-KHR_DF_SAMPLE_DATATYPE_SIGNED = 0x40
-KHR_DF_SAMPLE_DATATYPE_FLOAT = 0x80
+# Khronos Data Format constants (KDF §5; KTX-Software KHR/khr_df.h)
+KHR_DF_VERSIONNUMBER_1_3, KHR_DF_MODEL_RGBSDA, KHR_DF_FLAG_ALPHA_PREMULTIPLIED = 2, 1, 1
+KHR_DF_PRIMARIES_UNSPECIFIED, KHR_DF_PRIMARIES_BT709 = 0, 1
+KHR_DF_TRANSFER_UNSPECIFIED, KHR_DF_TRANSFER_LINEAR = 0, 1
+KHR_DF_SAMPLE_DATATYPE_SIGNED, KHR_DF_SAMPLE_DATATYPE_FLOAT = 0x40, 0x80
 CHANNEL_IDS = (0, 1, 2, 15)
 """RGBSDA channel ids of the samples R, G, B, A."""
-FLOAT_MINUS_ONE = 0xBF800000
-FLOAT_ONE = 0x3F800000
+FLOAT_MINUS_ONE, FLOAT_ONE = 0xBF800000, 0x3F800000   # -1.0f, 1.0f as float32 bits
 
 LevelWriter = Callable[[BinaryIO, int], None]
 """``write_level(f, k)`` appends level ``k``'s texels to ``f``: exactly :meth:`Ktx2Shape.level_bytes`
@@ -133,7 +127,8 @@ class Ktx2Shape:
         if self.width < 1 or self.height < 1:
             raise ValueError(f"a KTX2 texture needs width and height >= 1, got {self.width} x {self.height}")
         if self.faces not in (1, 6) or (self.faces == 6 and self.width != self.height):
-            raise ValueError(f"faceCount must be 1 or 6 (square faces), got {self.faces} of {self.width} x {self.height}")
+            raise ValueError(f"faceCount must be 1 or 6 (square faces), got {self.faces} of "
+                             f"{self.width} x {self.height}")
         if self.layers < 0:
             raise ValueError(f"layerCount must be >= 0, got {self.layers}")
         if not 1 <= self.levels <= max_levels(self.width, self.height):
@@ -285,11 +280,15 @@ def dfd_difference(got: bytes, want: bytes) -> str | None:
     if got == want:
         return None
     if len(got) != len(want):
-        return f"DFD dfdTotalSize is {len(got)}, expected {len(want)} (one basic block of {(len(want) - 28) // 16} sample(s))"
+        return (f"DFD dfdTotalSize is {len(got)}, expected {len(want)} "
+                f"(one basic block of {(len(want) - 28) // 16} sample(s))")
     g = struct.unpack(f"<{len(got) // 4}I", got)
     w = struct.unpack(f"<{len(want) // 4}I", want)
     i = next(i for i in range(1, len(g)) if g[i] != w[i])
-    fields, prefix = (_DFD_WORDS[i - 1], "") if i <= 6 else (_SAMPLE_WORDS[(i - 7) % 4], f"sample {(i - 7) // 4} ")
+    if i <= 6:
+        fields, prefix = _DFD_WORDS[i - 1], ""
+    else:
+        fields, prefix = _SAMPLE_WORDS[(i - 7) % 4], f"sample {(i - 7) // 4} "
     for name, shift, bits in fields:
         a, b = (g[i] >> shift) & ((1 << bits) - 1), (w[i] >> shift) & ((1 << bits) - 1)
         if a != b:
@@ -317,8 +316,8 @@ def read_ktx2_file(path: str | os.PathLike[str], *, formats: Collection[VkFormat
 
     The DFD must be :func:`basic_dfd` of the file's vkFormat (premultiplied or not) or one of
     ``legacy_dfds`` (what an older envcap wrote for a format, accepted by its module).  Keys other
-    than the specification's are read and returned, never needed (§5: readers ignore what they do
-    not know).  ``FileNotFoundError`` for a missing file; ``ValueError`` naming ``what``, the
+    than the specification's are read and returned, never needed (§4, "Extending KTX": readers
+    ignore metadata they do not handle).  ``FileNotFoundError`` for a missing file; ``ValueError`` naming ``what``, the
     file and the first field that is wrong (truncation included)."""
     p = Path(path)
     if not p.is_file():
@@ -337,9 +336,11 @@ def read_ktx2_file(path: str | os.PathLike[str], *, formats: Collection[VkFormat
                          f"{', '.join(f'{f.value} {f.name}' for f in formats)})")
     fmt = by_value[vk]
     if type_size != fmt.component.itemsize:
-        raise ValueError(f"{where}: typeSize {type_size} does not match {fmt.name} (expected {fmt.component.itemsize})")
+        raise ValueError(f"{where}: typeSize {type_size} does not match {fmt.name} "
+                         f"(expected {fmt.component.itemsize})")
     if n_faces != faces:
-        raise ValueError(f"{where}: faceCount {n_faces}, expected {faces} ({'a cube map' if faces == 6 else 'no cube map'})")
+        raise ValueError(f"{where}: faceCount {n_faces}, expected {faces} "
+                         f"({'a cube map' if faces == 6 else 'no cube map'})")
     if width < 1 or height < 1 or (faces == 6 and width != height):
         raise ValueError(f"{where}: {'cube faces must be square and non-empty' if faces == 6 else 'empty image'}, "
                          f"got {width}x{height}")
@@ -348,7 +349,8 @@ def read_ktx2_file(path: str | os.PathLike[str], *, formats: Collection[VkFormat
     if scheme != 0:
         raise ValueError(f"{where}: supercompressionScheme {scheme} not supported (expected 0, none)")
     if not 1 <= n_levels <= max_levels(width, height):
-        raise ValueError(f"{where}: levelCount {n_levels} invalid for {width}x{height} (1..{max_levels(width, height)})")
+        raise ValueError(f"{where}: levelCount {n_levels} invalid for {width}x{height} "
+                         f"(1..{max_levels(width, height)})")
     if sgd_off != 0 or sgd_len != 0:
         raise ValueError(f"{where}: unexpected supercompression global data")
     shape = Ktx2Shape(fmt, width, height, layers, n_faces, n_levels)
@@ -357,8 +359,9 @@ def read_ktx2_file(path: str | os.PathLike[str], *, formats: Collection[VkFormat
         raise ValueError(f"{where}: truncated in the level index")
     if dfd_off != index_end or dfd_len < 4 + 24 or dfd_off + dfd_len > len(data):
         raise ValueError(f"{where}: bad DFD location (offset {dfd_off}, length {dfd_len})")
-    if struct.unpack_from("<I", data, dfd_off)[0] != dfd_len:
-        raise ValueError(f"{where}: dfdTotalSize {struct.unpack_from('<I', data, dfd_off)[0]} != dfdByteLength {dfd_len}")
+    total = struct.unpack_from("<I", data, dfd_off)[0]
+    if total != dfd_len:
+        raise ValueError(f"{where}: dfdTotalSize {total} != dfdByteLength {dfd_len}")
     dfd = data[dfd_off:dfd_off + dfd_len]
     premultiplied = fmt.components == 4 and dfd == basic_dfd(fmt, premultiplied=True)
     if not premultiplied and dfd != basic_dfd(fmt) and dfd not in legacy_dfds:
