@@ -10,8 +10,9 @@ Steps, under the lock of the city directory (:func:`envcap.outputs.claim_output_
 3. every shard not yet on disk (:func:`envcap.city.shard.is_finished`) is baked and installed
    atomically under its key: ``workers=0`` in this process, else on a Dask ``LocalCluster`` of
    ``workers`` processes or the cluster at ``scheduler`` (:mod:`envcap.city.dask_run`);
-4. ``street_map.ktx2`` (R16UI, ``map_cell`` m) and then ``city.json`` are written atomically;
-   shard directories of other inputs (an older plan) are removed.
+4. ``street_map.ktx2`` (R16UI ids) and then ``city.json`` (with the map's origin and its cell,
+   ``map_cell`` m) are written atomically; shard directories of other inputs (an older plan) are
+   removed.
 
 Resumable and identical: a run killed at any point leaves complete shards, the marker and
 temporary names that the next claim removes; rerunning skips the complete shards.  Shard bytes

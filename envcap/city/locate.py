@@ -115,9 +115,4 @@ def load_city_map(path: str | os.PathLike[str]) -> CityMap:
     index = read_city_index(root / INDEX_FILE if p.is_dir() else p)
     if index.street_map is None:
         raise ValueError(f"{root / INDEX_FILE}: this city has no street map")
-    sm = read_street_map(root / index.street_map.file)
-    info = index.street_map
-    if sm.ids.shape != (info.size[1], info.size[0]) or sm.origin != info.origin or sm.cell != info.cell:
-        raise ValueError(f"{root / info.file}: {sm.size} cells of {sm.cell} m at {sm.origin} disagree with "
-                         f"{INDEX_FILE}'s {info.size} cells of {info.cell} m at {info.origin}")
-    return CityMap(index, sm)
+    return CityMap(index, read_street_map(root / index.street_map.file, index.street_map))

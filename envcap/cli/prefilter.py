@@ -4,7 +4,9 @@
 HDR/EXR (``envcap.core.latlong.load_latlong``, resampled with ``latlong_to_cube``).  ``DIR`` gets,
 atomically (all or nothing):
 
-* ``chain.ktx2``: plain cube map, RGBA32F, every level of the chain (``envcap.formats.ktx2``);
+* ``chain.ktx2``: plain cube map, RGBA32F, every level of the chain (``envcap.formats.ktx2``), with
+  only the key/values the KTX 2.0 specification defines: what its levels are (the lobe ladder) is
+  in ``chain.json`` (before issue 19 envcap also wrote it into the file, as the custom key ``envcap.lobes``);
 * ``level_KK.exr``: one OpenEXR cube env map per level, for inspection (half floats when every
   value fits, float32 otherwise);
 * ``chain.json``: the lobe ladder (``LobeLadder.to_manifest()``: sizes, powers, z(w) rule),
@@ -95,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         with atomic_output_dir(out) as tmp:
             write_ktx2(tmp / "chain.ktx2", [np.ascontiguousarray(c, np.float32) for c in chain], layered=False,
-                       fmt="rgba32f", kv={"envcap.lobes": json.dumps(ladder.to_manifest())})
+                       fmt="rgba32f")
             for k, lv in enumerate(chain):
                 write_exr_cube(tmp / f"level_{k:02d}.exr", lv, half=None)
             manifest = {

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from envcap.formats.face_atlas import face_atlas
-from envcap.formats.ktx2_array import write_ktx2_array
+from envcap.formats.ktx2 import write_ktx2_array
 from envcap.formats.writer import FileEntries, ProbeSetWriter
 
 if TYPE_CHECKING:

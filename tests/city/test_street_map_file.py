@@ -1,5 +1,6 @@
 """The street map in the city index: a KTX2 R16UI file (checked field by field against the KTX
-2.0 layout) and the lookup world (x, z) -> (street, local frame, probe range)."""
+2.0 layout; every field against the specification in tests/formats/test_ktx2_files.py) whose origin
+and cell are in city.json, and the lookup world (x, z) -> (street, local frame, probe range)."""
 
 import struct
 
@@ -8,7 +9,7 @@ import pytest
 
 from envcap.city.locate import load_city_map
 from envcap.city.street_map_file import read_street_map, street_map_bytes, write_street_map
-from envcap.probeset.city_index import read_city_index
+from envcap.probeset.city_index import StreetMapInfo, read_city_index
 from envcap.probeset.manifest import read_manifest
 from envcap.runtime.street_map import StreetMap
 
@@ -23,26 +24,38 @@ def test_the_file_is_a_ktx2_r16_uint_image_by_the_spec(tmp_path):
     dfd_off, dfd_len, kvd_off, kvd_len = struct.unpack_from("<4I", raw, 48)
     off, length, ulength = struct.unpack_from("<3Q", raw, 80)
     assert (dfd_off, length, ulength) == (104, 24, 24) and off % 4 == 0
-    # DFD: total size, basic block header (40 bytes), one sample: 16-bit unsigned R, upper 65535
+    # DFD: total size, basic block header (40 bytes), RGBSDA with primaries and transfer unspecified
+    # (integer format, KTX 2.0 3.10.1), one sample: 16-bit unsigned R, sampleLower 0, sampleUpper 1
     words = struct.unpack_from("<11I", raw, dfd_off)
-    assert words[0] == dfd_len == 44 and words[2] >> 16 == 40 and words[3] & 0xFF == 1
-    assert (words[7] >> 16) & 0xFF == 15 and words[7] >> 24 == 0 and words[10] == 65535
+    assert words[0] == dfd_len == 44 and words[2] >> 16 == 40 and words[3] == 1
+    assert (words[7] >> 16) & 0xFF == 15 and words[7] >> 24 == 0 and words[9:] == (0, 1)
     kv = raw[kvd_off:kvd_off + kvd_len]
-    assert b"KTXorientation\x00rd\x00" in kv and b'envcapStreetMap\x00{"origin": [-3.5, 100000.0], "cell": 0.25}' in kv
+    assert b"KTXorientation\x00rd\x00" in kv and b"envcap" not in kv.replace(b"KTXwriter\x00envcap", b"")
     np.testing.assert_array_equal(np.frombuffer(raw, "<u2", 12, off).reshape(3, 4), ids)
-    back = read_street_map(write_street_map(tmp_path / "m.ktx2", sm))
+    info = StreetMapInfo("m.ktx2", sm.origin, sm.cell, sm.size)       # city.json's entry: origin and cell
+    back = read_street_map(write_street_map(tmp_path / "m.ktx2", sm), info)
     assert (back.origin, back.cell) == (sm.origin, sm.cell)
     np.testing.assert_array_equal(back.ids, ids)
 
 
-@pytest.mark.parametrize("cut, words", [(lambda b: b[:60], "not a KTX 2.0 file"),
-                                        (lambda b: b[:12] + struct.pack("<I", 97) + b[16:], "vkFormat is 97"),
-                                        (lambda b: b[:-2], "level 0 holds 24 bytes")])
+@pytest.mark.parametrize("cut, words", [(lambda b: b[:60], "truncated"),
+                                        (lambda b: b"\0" + b[1:], "not a KTX 2.0 file"),
+                                        (lambda b: b[:12] + struct.pack("<I", 97) + b[16:], "vkFormat 97 not supported"),
+                                        (lambda b: b[:36] + struct.pack("<I", 6) + b[40:], "faceCount 6, expected 1"),
+                                        (lambda b: b[:-2], "truncated: level 0 needs bytes")])
 def test_a_bad_file_is_named(tmp_path, cut, words):
     path = tmp_path / "m.ktx2"
     path.write_bytes(cut(street_map_bytes(StreetMap(np.ones((3, 4), np.uint16), (0.0, 0.0), 1.0))))
-    with pytest.raises(ValueError, match=words):
-        read_street_map(path)
+    with pytest.raises(ValueError, match=f"street map {path}: {words}"):
+        read_street_map(path, StreetMapInfo("m.ktx2", (0.0, 0.0), 1.0, (4, 3)))
+
+
+def test_the_map_and_city_json_must_agree(crossing_city):
+    info = read_city_index(crossing_city).street_map
+    assert read_street_map(crossing_city / info.file, info).size == tuple(info.size) == (300, 300)
+    wider = StreetMapInfo(info.file, info.origin, info.cell, (info.size[0] + 1, info.size[1]))
+    with pytest.raises(ValueError, match=r"300 x 300 cells, city.json says 301 x 300"):
+        read_street_map(crossing_city / info.file, wider)
 
 
 def test_locate_gives_the_street_its_frame_and_its_probe_range(crossing_city):

@@ -305,7 +305,7 @@ def test_ladder_atlas_of_every_rung_is_refused(ladder_dir, tmp_path):
     import shutil
 
     from envcap.formats.face_atlas import face_atlas
-    from envcap.formats.ktx2_array import write_ktx2_array
+    from envcap.formats.ktx2 import write_ktx2_array
 
     d = shutil.copytree(ladder_dir, tmp_path / "all_rungs")
     ps = read_probe_set(d, distance=False)
