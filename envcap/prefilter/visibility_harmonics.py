@@ -50,7 +50,7 @@ every band up to the projection's degree, at least this."""
 MAX_DEGREE = 80
 """Highest degree :func:`harmonic_visibility` expands to (lobes up to ``w`` ~ 240 at :data:`BAND_TOL`)."""
 _SMALL_W = 16.0
-_BLOCK_TEXELS = 2048          # projection: texels per block of harmonics (float32, 4 B x K each)
+_BLOCK_TEXELS = 4096          # projection: texels per block of harmonics (float32, 4 B x K each)
 CHUNK_BYTES = 128 << 20
 """Probes per chunk of :func:`harmonic_visibility`: their working arrays (:func:`probe_bytes`) fit this."""
 
@@ -253,37 +253,41 @@ def _monomials(order: int, basis_fn: Callable[[NDArray[np.float64]], NDArray[np.
 def _project(alpha: NDArray, degree: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Quadrature coefficients up to ``degree`` of the cubes ``alpha`` ``(P, 6, N, N)`` (any float
     array or view) and of 1: ``((K, P), (K,))``, from the first quadrants of faces ``+X, +Y, +Z``
-    with the input summed over each orbit per character (module docstring)."""
-    n = alpha.shape[2]
+    with the input summed over each orbit per character (module docstring), in blocks of texels."""
+    p_all, _, n, _ = alpha.shape
     k = _sh_count(degree)
     h = (n + 1) // 2
-    w = cube_geometry.texel_solid_angles(n)[0][:h, :h].reshape(-1)  # every face alike, flip-symmetric
+    w = np.tile(cube_geometry.texel_solid_angles(n)[0][:h, :h].reshape(-1), 3)   # every face alike, flip-symmetric
+    orbits = _orbits(n)
+    d = np.concatenate([o[0] for o in orbits])
+    face, rest = np.divmod(np.concatenate([o[1] for o in orbits], axis=1), n * n)
+    row, col = np.divmod(rest, n)
+    w = (w * np.concatenate([o[2] for o in orbits])).astype(np.float32)
     rows = _character_rows(degree)
-    coef, one = np.zeros((k, alpha.shape[0])), np.zeros(k)
-    for d, idx, inv_stab in _orbits(n):
-        face, rest = np.divmod(idx, n * n)
-        row, col = np.divmod(rest, n)
-        for t0 in range(0, d.shape[0], _BLOCK_TEXELS):
-            t1 = min(d.shape[0], t0 + _BLOCK_TEXELS)
-            y = real_sh_rows(d[t0:t1], degree, np.float32)                 # (K, T)
-            wt = (w[t0:t1] * inv_stab[t0:t1]).astype(np.float32)
-            ones = _walsh(np.ones((8, t1 - t0), np.float32)) * wt          # the orbit sums of 1
-            images = np.asarray(alpha[:, face[:, t0:t1], row[:, t0:t1], col[:, t0:t1]], np.float32)   # (P, 8, T)
-            sums = _walsh(np.ascontiguousarray(np.moveaxis(images, 1, 0))) * wt   # (8, P, T)
-            for c in range(8):
-                one[rows[c]] += y[rows[c]] @ ones[c]
-                coef[rows[c]] += y[rows[c]] @ sums[c].T
+    probe = np.arange(p_all)[None, :, None]
+    coef, one = np.zeros((k, p_all)), np.zeros(k)
+    for t0 in range(0, d.shape[0], _BLOCK_TEXELS):
+        t = slice(t0, min(d.shape[0], t0 + _BLOCK_TEXELS))
+        y = real_sh_rows(d[t], degree, np.float32)                             # (K, T)
+        ones = _walsh(np.ones((8, y.shape[1]), np.float32)) * w[t]             # the orbit sums of 1
+        images = np.asarray(alpha[probe, face[:, None, t], row[:, None, t], col[:, None, t]], np.float32)  # (8, P, T)
+        sums = _walsh(images)
+        sums *= w[t]
+        for c in range(8):
+            one[rows[c]] += y[rows[c]] @ ones[c]
+            coef[rows[c]] += y[rows[c]] @ sums[c].T
     return coef, one
 
 
 def probe_bytes(n: int, degree: int, n_sh: int) -> int:
     """Working bytes per probe of a chunk of :func:`harmonic_visibility` (faces of ``n`` texels,
     expansion degree ``degree``, ``n_sh`` functions ``Y_c``): the orbit sums of one block of texels
-    (four float32 arrays of ``8 T``), the coefficients (float64 of ``alpha`` and its monomials up to
-    order 1 and of ``alpha Y_c``, float32 scaled), three float32 arrays of one lobe's values at the
-    orbits of 32^2 faces."""
-    block = min(_BLOCK_TEXELS, ((n + 1) // 2) ** 2)
-    return 128 * block + 8 * _sh_count(degree + 1) * (4 + 2 * n_sh) + 12 * 8 * 16 * 16 * n_sh
+    (two float32 arrays of ``8 T``), the coefficients (float64 of ``alpha`` and its monomials up to
+    order 1 and of ``alpha Y_c``, float32 scaled per lobe of a level), the four lobes' sums per
+    character at the orbits of three 32^2 faces and three float32 arrays of one lobe's values."""
+    block = min(_BLOCK_TEXELS, 3 * ((n + 1) // 2) ** 2)
+    k = _sh_count(degree + 1)
+    return 64 * block + 8 * k * (4 + n_sh) + 16 * k * n_sh + 4 * 8 * 3 * 16 * 16 * (4 + 3) * n_sh
 
 
 def _moments(coef: NDArray[np.float64], degree: int, order: int,
@@ -318,20 +322,24 @@ def _synthesize(moments: NDArray[np.float64], one: NDArray[np.float64], powers: 
         idx = [i for i, si in enumerate(sizes) if si == s]
         deg = max(limits[i] for i in idx)
         rows = _character_rows(deg)
-        for d, orbit, _ in _orbits(s):
-            face, rest = np.divmod(orbit.reshape(-1), s * s)
-            row, col = np.divmod(rest, s)
-            y = real_sh_rows(d, deg, np.float32)                                # (K, Q)
-            for i in idx:
-                k = _sh_count(limits[i])
-                lam = np.repeat(lobe_band_factors(float(powers[i]), limits[i]), 2 * np.arange(limits[i] + 1) + 1)
-                c = np.empty((k, p_all * n_sh + 1), np.float32)
-                np.multiply(flat_m[:k], lam.astype(np.float32)[:, None], out=c[:, :-1])
-                c[:, -1] = one[:k] * lam                                         # the normalizer's
-                parts = np.stack([y[r[r < k]].T @ c[r[r < k]] for r in rows])    # (8, Q, P n_sh + 1)
-                v = _walsh(parts)                                                # the 8 images' values
-                v = v[..., :-1] / v[..., -1:]
-                out[i][:, face, row, col] = np.moveaxis(v.reshape(-1, p_all, n_sh), 1, 0)
+        orbits = _orbits(s)                                                     # faces +X, +Y, +Z stacked
+        face, rest = np.divmod(np.concatenate([o for _, o, _ in orbits], axis=1).reshape(-1), s * s)
+        row, col = np.divmod(rest, s)
+        y = real_sh_rows(np.concatenate([d for d, _, _ in orbits]), deg, np.float32).T   # (3 Q, K)
+        width = p_all * n_sh + 1
+        c = np.zeros((_sh_count(deg), len(idx) * width), np.float32)           # every lobe of the level side by side
+        for j, i in enumerate(idx):
+            k = _sh_count(limits[i])
+            lam = np.repeat(lobe_band_factors(float(powers[i]), limits[i]), 2 * np.arange(limits[i] + 1) + 1)
+            np.multiply(flat_m[:k], lam.astype(np.float32)[:, None], out=c[:k, j * width:(j + 1) * width - 1])
+            c[:k, (j + 1) * width - 1] = one[:k] * lam                           # the normalizer's
+        parts = np.empty((8, y.shape[0], c.shape[1]), np.float32)               # per character, every lobe
+        for ch, r in enumerate(rows):
+            np.matmul(y[:, r], c[r], out=parts[ch])
+        for j, i in enumerate(idx):
+            v = _walsh(np.ascontiguousarray(parts[..., j * width:(j + 1) * width]))   # the 8 images' values
+            v = v[..., :-1] / v[..., -1:]
+            out[i][:, face, row, col] = np.moveaxis(v.reshape(-1, p_all, n_sh), 1, 0)
 
 
 def harmonic_visibility(alpha: ArrayLike, powers: Sequence[float], sizes: Sequence[int], order: int,
