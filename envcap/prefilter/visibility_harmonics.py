@@ -44,11 +44,10 @@ __all__ = ["BAND_TOL", "CHUNK_BYTES", "FLOOR_DEGREE", "MAX_DEGREE", "band_limit"
 
 BAND_TOL = 1e-4
 """A lobe keeps the bands up to the last with ``|lambda_l(w)| > BAND_TOL`` (:func:`band_limit`)."""
-FLOOR_DEGREE = 32
-"""The wide lobes (``w <= 16``: ``lambda_l`` falls as a power of ``l``, the clamped cosine's kink) keep
-every band up to the projection's degree, at least this."""
+FLOOR_DEGREE = 40
+"""The wide lobes (``w <= 16``) keep at least this many bands (:func:`degree_plan`)."""
 MAX_DEGREE = 80
-"""Highest degree :func:`harmonic_visibility` expands to (lobes up to ``w`` ~ 240 at :data:`BAND_TOL`)."""
+"""Highest degree :func:`harmonic_visibility` expands to (lobes up to ``w`` ~ 340 at :data:`BAND_TOL`)."""
 _SMALL_W = 16.0
 _BLOCK_TEXELS = 4096          # projection: texels per block of harmonics (float32, 4 B x K each)
 CHUNK_BYTES = 128 << 20
@@ -74,15 +73,15 @@ def band_limit(w: float, tol: float = BAND_TOL) -> int:
 
 
 def degree_plan(powers: Sequence[float], tol: float = BAND_TOL) -> tuple[int, list[int]]:
-    """``(L, [L_i])``: the expansion's degree ``L`` (the narrowest lobe's :func:`band_limit`, at least
-    :data:`FLOOR_DEGREE`) and each lobe's (its band limit, at most ``L``).  ``ValueError`` past
-    :data:`MAX_DEGREE`."""
+    """``(L, [L_i])``: each lobe's degree and the largest.  A lobe of ``w > 16`` keeps its
+    :func:`band_limit`; a wider one (``lambda_l`` falls only as a power of ``l`` there: the clamped
+    cosine's kink) every band up to ``max(FLOOR_DEGREE, the others' largest)``, at most its band
+    limit.  ``ValueError`` past :data:`MAX_DEGREE`."""
     limits = [band_limit(w, tol) for w in powers]
     top = max([0] + [b for b, w in zip(limits, powers) if w > _SMALL_W])
     if top > MAX_DEGREE:
         raise ValueError(f"a lobe of w = {max(powers):g} needs SH degree {top} > {MAX_DEGREE}")
-    floor = FLOOR_DEGREE
-    limits = [b if w > _SMALL_W else min(b, floor) for b, w in zip(limits, powers)]
+    limits = [b if w > _SMALL_W else min(b, max(FLOOR_DEGREE, top)) for b, w in zip(limits, powers)]
     return max(limits), limits
 
 
