@@ -42,10 +42,10 @@ from numpy.typing import ArrayLike, NDArray
 from envcap.capture.sky_sh import SH_C
 from envcap.core import cube as cube_geometry
 from envcap.core.lobes import LobeLadder
-from envcap.core.rungs import RungLadder
+from envcap.core.rungs import RungLadder, rung_ladder
 from envcap.gpu.context import create_context
 from envcap.prefilter.fast import QUALITIES, Quality, prefilter_level, prefilter_many
-from envcap.prefilter.visibility_harmonics import harmonic_visibility
+from envcap.prefilter.visibility_harmonics import CHUNK_BYTES, degree_plan, harmonic_visibility, probe_bytes
 
 __all__ = [
     "DEFAULT_MAX_POWER",
@@ -62,6 +62,7 @@ __all__ = [
     "sh_basis",
     "sh_count",
     "sky_visibility_chunk",
+    "visibility_bake_bytes",
     "visibility_bytes_per_probe",
 ]
 
@@ -326,3 +327,25 @@ def sky_visibility_chunk(resolution: int, batch_bytes: int = PREFILTER_BATCH_BYT
     batch of :func:`envcap.prefilter.fast.prefilter_many` (its rule: ``batch_bytes`` over 16 B per
     level-0 texel, at least 1)."""
     return max(1, int(batch_bytes // (6 * resolution * resolution * 16)))
+
+
+def visibility_bake_bytes(probes: float, resolution: float, order: int = 1) -> float:
+    """Peak bytes the ``sky_visibility`` writer adds to a bake of ``probes`` probes at ``resolution``
+    texels per face (``quality="harmonics"``, the half-octave ladder: the most rungs), for the bake's
+    estimate (:func:`envcap.probeset.bake_bounds.estimate_bake`): the larger of the filter's peak
+    (the float32 moments; one chunk of probes, :func:`envcap.prefilter.visibility_harmonics.probe_bytes`
+    each; the harmonics of one block of texels, float32, and the recurrence's float64 rows; the
+    orbits' texel indices and directions, ~530 B per texel of a face; the finiteness check, 1 B per
+    texel of the set) and the write's (the moments, their packed copy and the half floats: 2.75 x
+    the float32 moments).  The stored levels and the block are the same for every ``N >= 74``."""
+    n = int(min(resolution, 256))
+    lad = rung_ladder(n, "half_octave")
+    j0, r_per = first_stored_level(lad), lad.per_level
+    big, _ = degree_plan([lad.powers[i] for i in range(max(j0 * r_per, 1), lad.rungs)])
+    per = probe_bytes(n, big, sh_count(order), lad.sizes[j0])
+    block = min(4096, 3 * ((n + 1) // 2) ** 2)
+    face = float(resolution) ** 2
+    fixed = 5.0 * (big + order + 1) ** 2 * block + 64.0 * (big + order + 1) * block + 530.0 * face
+    moments = 2.0 * visibility_bytes_per_probe(lad, order, first_level=j0) * probes   # float32: 2 x RGBA16F
+    working = per * min(probes, max(1, CHUNK_BYTES // per)) + fixed + 6.0 * face * probes
+    return max(moments + working, 2.75 * moments)

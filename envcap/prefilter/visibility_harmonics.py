@@ -278,15 +278,16 @@ def _project(alpha: NDArray, degree: int) -> tuple[NDArray[np.float64], NDArray[
     return coef, one
 
 
-def probe_bytes(n: int, degree: int, n_sh: int) -> int:
+def probe_bytes(n: int, degree: int, n_sh: int, out_face: int = 32) -> int:
     """Working bytes per probe of a chunk of :func:`harmonic_visibility` (faces of ``n`` texels,
-    expansion degree ``degree``, ``n_sh`` functions ``Y_c``): the orbit sums of one block of texels
-    (two float32 arrays of ``8 T``), the coefficients (float64 of ``alpha`` and its monomials up to
-    order 1 and of ``alpha Y_c``, float32 scaled per lobe of a level), the four lobes' sums per
-    character at the orbits of three 32^2 faces and three float32 arrays of one lobe's values."""
+    expansion degree ``degree``, ``n_sh`` functions ``Y_c``, lobes on faces of at most ``out_face``
+    texels): the orbit sums of one block of texels (two float32 arrays of ``8 T``), the coefficients
+    (float64 of ``alpha`` and its monomials up to order 1 and of ``alpha Y_c``, float32 scaled per
+    lobe of a level), the four lobes' sums per character at the orbits of three faces and three
+    float32 arrays of one lobe's values."""
     block = min(_BLOCK_TEXELS, 3 * ((n + 1) // 2) ** 2)
     k = _sh_count(degree + 1)
-    return 64 * block + 8 * k * (4 + n_sh) + 16 * k * n_sh + 4 * 8 * 3 * 16 * 16 * (4 + 3) * n_sh
+    return 64 * block + 8 * k * (4 + n_sh) + 16 * k * n_sh + 4 * 8 * 3 * ((out_face + 1) // 2) ** 2 * (4 + 3) * n_sh
 
 
 def _moments(coef: NDArray[np.float64], degree: int, order: int,
@@ -362,7 +363,7 @@ def harmonic_visibility(alpha: ArrayLike, powers: Sequence[float], sizes: Sequen
     if not sizes:
         return res
     big, limits = degree_plan(powers, tol)
-    per = max(1, int(CHUNK_BYTES // probe_bytes(a.shape[2], big, n_sh)))
+    per = max(1, int(CHUNK_BYTES // probe_bytes(a.shape[2], big, n_sh, max(sizes))))
     for p0 in range(0, a.shape[0], per):       # chunks of probes: bounded memory, the harmonics again per chunk
         coef, one = _project(a[p0:p0 + per], big + order)
         _synthesize(_moments(coef, big, order, basis_fn), one, powers, limits, sizes, [r[p0:p0 + per] for r in res])
