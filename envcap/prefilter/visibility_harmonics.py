@@ -30,17 +30,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from envcap.core import cube as cube_geometry
 from envcap.prefilter.wide_lobes import lobe_band_factors
 
 __all__ = ["BAND_TOL", "CHUNK_BYTES", "FLOOR_DEGREE", "MAX_DEGREE", "band_limit", "degree_plan", "harmonic_visibility",
-           "mirror_signs", "multiplication_operators", "probe_bytes", "real_sh_rows"]
+           "mirror_signs", "multiplication_operators", "probe_bytes", "real_sh_rows", "SparseRows"]
 
 BAND_TOL = 1e-4
 """A lobe keeps the bands up to the last with ``|lambda_l(w)| > BAND_TOL`` (:func:`band_limit`)."""
@@ -179,8 +179,25 @@ def _orbits(n: int) -> tuple[tuple[NDArray[np.float64], NDArray[np.intp], NDArra
     return tuple(out)
 
 
+@dataclass(frozen=True)
+class SparseRows:
+    """A sparse matrix by padded rows: row ``r`` is ``sum_j vals[r, j] e_{cols[r, j]}`` (padding:
+    column 0, value 0)."""
+
+    cols: NDArray[np.intp]
+    vals: NDArray[np.float64]
+
+    def apply(self, src: NDArray[np.float64], rows: int | None = None) -> NDArray[np.float64]:
+        """The first ``rows`` rows (all by default) times ``src`` ``(K, ...)``."""
+        rows = self.cols.shape[0] if rows is None else rows
+        out = np.zeros((rows,) + src.shape[1:])
+        for j in range(self.cols.shape[1]):
+            out += self.vals[:rows, j].reshape((rows,) + (1,) * (src.ndim - 1)) * src[self.cols[:rows, j]]
+        return out
+
+
 @lru_cache(maxsize=4)
-def multiplication_operators(degree: int) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
+def multiplication_operators(degree: int) -> tuple[SparseRows, SparseRows, SparseRows]:
     """``(M_x, M_y, M_z)``, sparse ``(degree^2, (degree + 1)^2)``: the coefficients (``l < degree``) of
     ``x f``, ``y f``, ``z f`` from those of ``f`` (``l <= degree``), for the real SH of
     :func:`real_sh_rows` and their own ``x, y, z`` (``docs/lobes.md``: ``z P_l^m = A_l^m P_{l+1}^m +
@@ -229,10 +246,17 @@ def multiplication_operators(degree: int) -> tuple[sp.csr_matrix, sp.csr_matrix,
                 put("y", l - 1, -(m - 1), l, m, -0.5 * c2)
                 put("x", l + 1, -(m - 1), l, -m, -0.5 * c1)
                 put("x", l - 1, -(m - 1), l, -m, 0.5 * c2)
-    shape = (big * big, _sh_count(big))
-    mx, my, mz = (sp.csr_matrix((np.asarray(v), (np.asarray(r, np.int64), np.asarray(c, np.int64))), shape=shape)
-                  for r, c, v in (ops[a] for a in "xyz"))
-    return mx, my, mz
+    out = []
+    for axis in "xyz":
+        r, c, v = (np.asarray(x) for x in ops[axis])
+        order = np.argsort(r, kind="stable")
+        r, c, v = r[order], c[order], v[order]
+        slot = np.arange(r.size) - np.searchsorted(r, r)          # position within its row
+        cols = np.zeros((big * big, int(slot.max()) + 1), np.intp)
+        vals = np.zeros(cols.shape)
+        cols[r, slot], vals[r, slot] = c, v
+        out.append(SparseRows(cols, vals))
+    return out[0], out[1], out[2]
 
 
 def _monomials(order: int, basis_fn: Callable[[NDArray[np.float64]], NDArray[np.float64]]
@@ -305,7 +329,7 @@ def _moments(coef: NDArray[np.float64], degree: int, order: int,
             axis = 0 if e[0] else (1 if e[1] else 2)
             src = mono[(e[0] - (axis == 0), e[1] - (axis == 1), e[2] - (axis == 2))]
             deg = math.isqrt(src.shape[0]) - 1
-            mono[e] = ops[axis][:deg * deg, :src.shape[0]] @ src
+            mono[e] = ops[axis].apply(src, deg * deg)
         for c in np.flatnonzero(row):
             out[..., c] += row[c] * mono[e][:kb]
     return out
