@@ -17,6 +17,10 @@ constants, same order).  :func:`band_factors`: the Legendre coefficients ``lambd
 normalized ``cos^w`` lobe (``filter(Y_lm) = lambda_l(w) Y_lm``), ``lambda_0 = 1``,
 ``lambda_1 = (w + 1) / (w + 2)``, ``lambda_l = lambda_{l-2} (w - l + 2) / (w + l + 1)``.
 
+Filter: each rung's lobe, the exact normalized ``cos^w`` average of :mod:`envcap.prefilter.exact`,
+by Funk-Hecke through the spherical harmonics of alpha (:mod:`envcap.prefilter.visibility_harmonics`,
+``quality="harmonics"``; the GL chains before it stay as ``quality="default"`` etc.).
+
 Frame: ``V`` is in the alpha cube's own axes: for a probe of an angled street, its street's frame
 (:mod:`envcap.core.street_frame`, texel ``f`` = world direction ``R^T f``); the runtime turns
 world lookups into it (:func:`envcap.runtime.sky_visibility.sky_visible` ``yaw_deg``).
@@ -73,8 +77,8 @@ GL filter's (the filter before it)."""
 MAX_ORDER = 4
 """Highest SH order ``l`` supported (25 coefficients; GLSL ``ENVCAP_SKY_VIS_MAX_SH``)."""
 PREFILTER_BATCH_BYTES = 64 << 20
-"""The default ``batch_bytes`` of :func:`envcap.prefilter.fast.prefilter_many`: its batches are
-this function's chunks of probes (:func:`sky_visibility_chunk`)."""
+"""The default ``batch_bytes`` of :func:`envcap.prefilter.fast.prefilter_many`: its batches are the
+chunks of probes of :func:`prefilter_sky_visibility`'s GL qualities (:func:`sky_visibility_chunk`)."""
 DEFAULT_MAX_POWER = 130.0
 """Levels with a rung of ``w`` above this are not stored (the composite error there is < 4 %)."""
 
@@ -323,9 +327,10 @@ def _harmonic_visibility(src: NDArray[np.floating], ladder: RungLadder, order: i
 
 
 def sky_visibility_chunk(resolution: int, batch_bytes: int = PREFILTER_BATCH_BYTES) -> int:
-    """Probes per chunk of :func:`prefilter_sky_visibility` at ``resolution`` texels per face: one
-    batch of :func:`envcap.prefilter.fast.prefilter_many` (its rule: ``batch_bytes`` over 16 B per
-    level-0 texel, at least 1)."""
+    """Probes per chunk of :func:`prefilter_sky_visibility`'s GL qualities at ``resolution`` texels
+    per face: one batch of :func:`envcap.prefilter.fast.prefilter_many` (its rule: ``batch_bytes``
+    over 16 B per level-0 texel, at least 1).  ``"harmonics"`` chunks by
+    :func:`envcap.prefilter.visibility_harmonics.probe_bytes`."""
     return max(1, int(batch_bytes // (6 * resolution * resolution * 16)))
 
 

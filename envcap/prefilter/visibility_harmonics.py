@@ -166,9 +166,10 @@ def _orbits(n: int) -> tuple[tuple[NDArray[np.float64], NDArray[np.intp], NDArra
     f_y + f_z``, and ``1 / |stabilizer|`` ``(Q,)`` (an odd face's middle row or column is its own
     mirror)."""
     h = (n + 1) // 2
+    dirs = cube_geometry.texel_directions(n)
     out = []
     for f in (0, 2, 4):
-        d = cube_geometry.texel_directions(n)[f][:h, :h].reshape(-1, 3)
+        d = np.ascontiguousarray(dirs[f][:h, :h].reshape(-1, 3))
         idx = []
         for g in range(8):
             flip = np.array([-1.0 if g & 4 else 1.0, -1.0 if g & 2 else 1.0, -1.0 if g & 1 else 1.0])
