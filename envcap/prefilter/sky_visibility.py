@@ -318,8 +318,12 @@ def _harmonic_visibility(src: NDArray[np.floating], ladder: RungLadder, order: i
     levels = [np.empty((p_all * r_per, 6, s, s, n_sh), np.float32) for s in ladder.sizes[j0:]]
     rungs = [i for i in range(j0 * r_per, ladder.rungs) if i > 0]
     views = [levels[i // r_per - j0][i % r_per::r_per] for i in rungs]
-    harmonic_visibility(src, [ladder.powers[i] for i in rungs], [ladder.sizes[i // r_per] for i in rungs], order,
-                        lambda u: sh_basis(u, order), out=views)
+    try:
+        harmonic_visibility(src, [ladder.powers[i] for i in rungs], [ladder.sizes[i // r_per] for i in rungs], order,
+                            lambda u: sh_basis(u, order), out=views)
+    except ValueError as e:
+        raise ValueError(f"{e}: a stored rung past the harmonics' reach (lower max_power, or quality='default', "
+                         "the GL filter)") from None
     if j0 == 0:
         basis = sh_basis(cube_geometry.texel_directions(n), order).astype(np.float32)
         levels[0][0::r_per] = np.asarray(src, np.float32)[..., None] * basis
