@@ -20,6 +20,10 @@ the exact method's time on those texels, scaled to the whole set, gives the rati
 cmft is not built here: its time enters only as a conversion through the known point
 ``--cmft-seconds`` (one 256^2 cube in and out, 9 levels, 2 threads, ``../shared/PLATFORM.md``).
 
+``sky_visibility`` (per size, unless ``--sky-visibility-reps 0``): the fast path without and with
+``--sky-visibility``, interleaved pairs, their ratio and the moments' error against the exact
+reference (:mod:`envcap.benchmarks.bake_sky_visibility`).
+
 ``floor`` (per size, unless ``--floor-filter-probes 0``): what a bake of those probes cannot do
 without, each part timed alone, per probe: the capture (the scene's effects, fresh output arrays
 as in the bake; render and readback), the capture without shading (``geometry_only``), and the
@@ -41,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from envcap.capture.renderer import CubeCapture
+from envcap.benchmarks import bake_sky_visibility
 from envcap.core import cube as cm
 from envcap.core.color import luminance
 from envcap.core.lobes import lobe_ladder
@@ -72,6 +77,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--samples", type=int, default=64, help="texels per level checked against exact (default 64)")
     p.add_argument("--floor-filter-probes", type=int, default=8,
                    help="probes of the set filtered alone for the per-level floor (default 8; 0: no floor)")
+    bake_sky_visibility.add_sky_visibility_arguments(p)
     p.add_argument("--cmft-seconds", type=float, default=4.8,
                    help="cmft's wall time for one 256^2 cube, 9 levels, 2 threads, on this machine (default 4.8, "
                         "PLATFORM.md); used only to convert")
@@ -275,6 +281,9 @@ def _run_size(scene_name: str, size: int, args: argparse.Namespace, tmp: Path, c
         rec["prefilter_ratio"]["cmft_converted_over_previous_cpu"] = 2 * args.cmft_seconds * (layers + 1) / pre["before"]["cpu_seconds"]
     if args.floor_filter_probes > 0:
         rec["floor"] = _floor(scene_name, runs["after"][0], size, ctx, args.floor_filter_probes)
+    if args.sky_visibility_reps > 0:
+        rec["sky_visibility"] = bake_sky_visibility.sky_visibility_record(scene, size, args, tmp, ctx, runs["after"][0],
+                                                                          np.random.default_rng(size))
     rec["load_average_end"] = list(os.getloadavg())
     return rec
 
@@ -319,6 +328,7 @@ def _table(result: dict[str, Any]) -> str:
                      f"| {g['cpu_ms_per_probe_all_cores_busy']:g} | capture alone: {g['capture_alone_share_of_wall_budget']} "
                      f"of the wall budget | capture + filter: {g['capture_and_filter_cpu_share_of_cpu_budget']} of the CPU "
                      f"budget | |")
+    lines += bake_sky_visibility.table_lines(result)
     lines += ["", "| size | ratio | value |", "| --- | --- | --- |"]
     for rec in result["sizes"]:
         for k, v in rec["prefilter_ratio"].items():

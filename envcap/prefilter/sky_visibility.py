@@ -17,6 +17,10 @@ constants, same order).  :func:`band_factors`: the Legendre coefficients ``lambd
 normalized ``cos^w`` lobe (``filter(Y_lm) = lambda_l(w) Y_lm``), ``lambda_0 = 1``,
 ``lambda_1 = (w + 1) / (w + 2)``, ``lambda_l = lambda_{l-2} (w - l + 2) / (w + l + 1)``.
 
+Filter: each rung's lobe, the exact normalized ``cos^w`` average of :mod:`envcap.prefilter.exact`,
+by Funk-Hecke through the spherical harmonics of alpha (:mod:`envcap.prefilter.visibility_harmonics`,
+``quality="harmonics"``; the GL chains before it stay as ``quality="default"`` etc.).
+
 Frame: ``V`` is in the alpha cube's own axes: for a probe of an angled street, its street's frame
 (:mod:`envcap.core.street_frame`, texel ``f`` = world direction ``R^T f``); the runtime turns
 world lookups into it (:func:`envcap.runtime.sky_visibility.sky_visible` ``yaw_deg``).
@@ -34,7 +38,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, cast, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -42,12 +46,15 @@ from numpy.typing import ArrayLike, NDArray
 from envcap.capture.sky_sh import SH_C
 from envcap.core import cube as cube_geometry
 from envcap.core.lobes import LobeLadder
-from envcap.core.rungs import RungLadder
+from envcap.core.rungs import RungLadder, rung_ladder
 from envcap.gpu.context import create_context
-from envcap.prefilter.fast import Quality, prefilter_level, prefilter_many
+from envcap.prefilter.fast import QUALITIES, Quality, prefilter_level, prefilter_many
+from envcap.prefilter.visibility_harmonics import CHUNK_BYTES, degree_plan, harmonic_visibility, probe_bytes
 
 __all__ = [
     "DEFAULT_MAX_POWER",
+    "VISIBILITY_QUALITIES",
+    "VisibilityQuality",
     "PREFILTER_BATCH_BYTES",
     "MAX_ORDER",
     "SkyVisibility",
@@ -59,14 +66,19 @@ __all__ = [
     "sh_basis",
     "sh_count",
     "sky_visibility_chunk",
+    "visibility_bake_bytes",
     "visibility_bytes_per_probe",
 ]
 
+VisibilityQuality = Literal["harmonics", "fast", "default", "high", "composed"]
+VISIBILITY_QUALITIES: tuple[str, ...] = get_args(VisibilityQuality)
+"""``quality`` of :func:`prefilter_sky_visibility`: ``"harmonics"`` (Funk-Hecke, the default) or a
+GL filter's (the filter before it)."""
 MAX_ORDER = 4
 """Highest SH order ``l`` supported (25 coefficients; GLSL ``ENVCAP_SKY_VIS_MAX_SH``)."""
 PREFILTER_BATCH_BYTES = 64 << 20
-"""The default ``batch_bytes`` of :func:`envcap.prefilter.fast.prefilter_many`: its batches are
-this function's chunks of probes (:func:`sky_visibility_chunk`)."""
+"""The default ``batch_bytes`` of :func:`envcap.prefilter.fast.prefilter_many`: its batches are the
+chunks of probes of :func:`prefilter_sky_visibility`'s GL qualities (:func:`sky_visibility_chunk`)."""
 DEFAULT_MAX_POWER = 130.0
 """Levels with a rung of ``w`` above this are not stored (the composite error there is < 4 %)."""
 
@@ -223,21 +235,28 @@ def visibility_bytes_per_probe(ladder: RungLadder, order: int = 2, max_power: fl
 
 
 def prefilter_sky_visibility(alpha: ArrayLike, ladder: RungLadder, order: int = 2,
-                             max_power: float = DEFAULT_MAX_POWER, quality: Quality = "default",
+                             max_power: float = DEFAULT_MAX_POWER, quality: VisibilityQuality = "harmonics",
                              ctx: Any = None, batch_bytes: int = PREFILTER_BATCH_BYTES) -> SkyVisibility:
     """:class:`SkyVisibility` of the alpha cubes ``(P, 6, N, N)`` (or one ``(6, N, N)``) of captures.
 
-    Each rung is the same GL filter and lobe as :func:`envcap.prefilter.rungs.prefilter_rungs`
-    (one chain per layer ``r``; level-0 rungs, when stored, one cube at a time; rung 0 unfiltered).
-    The filtered cube holds ``(alpha, alpha, alpha, alpha Y_1, .., alpha Y_{n-1})``, so the filter's
-    coarse texels sit at their alpha-weighted centroids; ``V_00 = Y_00 filter(alpha)``.
-    ``ValueError``: NaN/Inf alpha, a shape that is not the ladder's, a bad order.
+    ``V_lm`` of rung ``i`` is the normalized ``cos^w_i`` average of :mod:`envcap.prefilter.exact`
+    (the rungs' lobes; rung 0, stored only for a one-level ladder, unfiltered).  ``ValueError``:
+    NaN/Inf alpha, a shape that is not the ladder's, a bad order or quality.
 
-    Memory: the float64 channel stack (``3 + n_sh`` channels) and the filter's pyramid exist for one
-    chunk of probes at a time, the cubes of one batch of :func:`envcap.prefilter.fast.prefilter_many`
-    (``batch_bytes`` over 16 B per level-0 texel: :func:`sky_visibility_chunk`), so the peak is
-    bounded by the chunk (``envcap.probeset.bake_bounds``); the chunks are those batches, so the
-    result is bit-identical to filtering all probes in one call.
+    ``quality="harmonics"`` (the default, what the bake runs): every rung from the spherical
+    harmonics of ``alpha`` (:func:`envcap.prefilter.visibility_harmonics.harmonic_visibility`,
+    Funk-Hecke: within ~1e-5 of the exact reference, ``docs/lobes.md``); no GL context; a rung past
+    its reach (``w`` above ~340: a ``max_power`` far above the default) raises ``ValueError``.
+    Memory: ``alpha`` as float32 once, the harmonics of one block of texels (``(degree + 1)^2`` x
+    2048 float32), the coefficients (float64, ``(degree + 1)^2`` per probe and ``Y_c``).
+
+    The GL qualities (``"fast"``, ``"default"``, ``"high"``, ``"composed"``: the filter before
+    ``"harmonics"``, kept for comparison): each rung is the GL filter of
+    :func:`envcap.prefilter.rungs.prefilter_rungs` (one chain per layer ``r``; level-0 rungs one
+    cube at a time) on ``(alpha, alpha, alpha, alpha Y_1, .., alpha Y_{n-1})`` (the coarse texels at
+    their alpha-weighted centroids; ``V_00 = Y_00 filter(alpha)``), float64, in chunks of probes of
+    one batch of :func:`envcap.prefilter.fast.prefilter_many` (``batch_bytes`` over 16 B per
+    level-0 texel, :func:`sky_visibility_chunk`), bit-identical to one call.
     """
     src = np.asarray(alpha)
     if not np.issubdtype(src.dtype, np.floating):
@@ -252,8 +271,13 @@ def prefilter_sky_visibility(alpha: ArrayLike, ladder: RungLadder, order: int = 
     p_all, _, n, _ = src.shape
     if n != ladder.sizes[0]:
         raise ValueError(f"alpha has {n}-texel faces, the rung ladder starts at {ladder.sizes[0]}")
-    basis = sh_basis(cube_geometry.texel_directions(n), order)         # (6, n, n, n_sh)
     j0 = first_stored_level(ladder, max_power)
+    if quality == "harmonics":
+        return _harmonic_visibility(src, ladder, int(order), j0)
+    if quality not in QUALITIES:
+        raise ValueError(f"quality must be one of {sorted(VISIBILITY_QUALITIES)}, got {quality!r}")
+    gl_quality = cast(Quality, quality)
+    basis = sh_basis(cube_geometry.texel_directions(n), order)         # (6, n, n, n_sh)
     r_per, big_j = ladder.per_level, ladder.levels
     out = [np.empty((p_all * r_per, 6, s, s, 3 + basis.shape[-1] - 1), np.float32) for s in ladder.sizes[j0:]]
     per = sky_visibility_chunk(n, batch_bytes)
@@ -268,13 +292,13 @@ def prefilter_sky_visibility(alpha: ArrayLike, ladder: RungLadder, order: int = 
             for r in range(r_per):
                 if big_j > 1:
                     powers = (ladder.powers[0],) + tuple(ladder.level_powers(j)[r] for j in range(1, big_j))
-                    chain = prefilter_many(chans, LobeLadder(ladder.sizes, powers), quality=quality, ctx=ctx,
+                    chain = prefilter_many(chans, LobeLadder(ladder.sizes, powers), quality=gl_quality, ctx=ctx,
                                            progress=False, batch_bytes=batch_bytes)
                     for j in range(max(j0, 1), big_j):
                         out[j - j0][rows][r::r_per] = chain[j]
                     del chain
                 if j0 == 0:
-                    level_q = quality if quality != "composed" else "default"
+                    level_q = gl_quality if gl_quality != "composed" else "default"
                     for p in range(a.shape[0]):
                         out[0][rows][p * r_per + r] = chans[p] if r == 0 else \
                             prefilter_level(chans[p], ladder.powers[r], n, quality=level_q, ctx=ctx)
@@ -286,8 +310,51 @@ def prefilter_sky_visibility(alpha: ArrayLike, ladder: RungLadder, order: int = 
     return SkyVisibility(vis, ladder, int(order), j0)
 
 
+def _harmonic_visibility(src: NDArray[np.floating], ladder: RungLadder, order: int, j0: int) -> SkyVisibility:
+    """The stored levels of :func:`prefilter_sky_visibility` by ``quality="harmonics"``: each rung
+    written into its layers (``p R + r``) of its level; rung 0 (``j0 = 0``) is ``alpha Y`` itself."""
+    p_all, _, n, _ = src.shape
+    r_per, n_sh = ladder.per_level, sh_count(order)
+    levels = [np.empty((p_all * r_per, 6, s, s, n_sh), np.float32) for s in ladder.sizes[j0:]]
+    rungs = [i for i in range(j0 * r_per, ladder.rungs) if i > 0]
+    views = [levels[i // r_per - j0][i % r_per::r_per] for i in rungs]
+    try:
+        harmonic_visibility(src, [ladder.powers[i] for i in rungs], [ladder.sizes[i // r_per] for i in rungs], order,
+                            lambda u: sh_basis(u, order), out=views)
+    except ValueError as e:
+        raise ValueError(f"{e}: a stored rung past the harmonics' reach (lower max_power, or quality='default', "
+                         "the GL filter)") from None
+    if j0 == 0:
+        basis = sh_basis(cube_geometry.texel_directions(n), order).astype(np.float32)
+        levels[0][0::r_per] = np.asarray(src, np.float32)[..., None] * basis
+    return SkyVisibility(levels, ladder, order, j0)
+
+
 def sky_visibility_chunk(resolution: int, batch_bytes: int = PREFILTER_BATCH_BYTES) -> int:
-    """Probes per chunk of :func:`prefilter_sky_visibility` at ``resolution`` texels per face: one
-    batch of :func:`envcap.prefilter.fast.prefilter_many` (its rule: ``batch_bytes`` over 16 B per
-    level-0 texel, at least 1)."""
+    """Probes per chunk of :func:`prefilter_sky_visibility`'s GL qualities at ``resolution`` texels
+    per face: one batch of :func:`envcap.prefilter.fast.prefilter_many` (its rule: ``batch_bytes``
+    over 16 B per level-0 texel, at least 1).  ``"harmonics"`` chunks by
+    :func:`envcap.prefilter.visibility_harmonics.probe_bytes`."""
     return max(1, int(batch_bytes // (6 * resolution * resolution * 16)))
+
+
+def visibility_bake_bytes(probes: float, resolution: float, order: int = 1) -> float:
+    """Peak bytes the ``sky_visibility`` writer adds to a bake of ``probes`` probes at ``resolution``
+    texels per face (``quality="harmonics"``, the half-octave ladder: the most rungs), for the bake's
+    estimate (:func:`envcap.probeset.bake_bounds.estimate_bake`): the larger of the filter's peak
+    (the float32 moments; one chunk of probes, :func:`envcap.prefilter.visibility_harmonics.probe_bytes`
+    each; the harmonics of one block of texels, float32, and the recurrence's float64 rows; the
+    orbits' texel indices and directions, ~530 B per texel of a face; the finiteness check, 1 B per
+    texel of the set) and the write's (the moments, their packed copy and the half floats: 2.75 x
+    the float32 moments).  The stored levels and the block are the same for every ``N >= 74``."""
+    n = int(min(resolution, 256))
+    lad = rung_ladder(n, "half_octave")
+    j0, r_per = first_stored_level(lad), lad.per_level
+    big, _ = degree_plan([lad.powers[i] for i in range(max(j0 * r_per, 1), lad.rungs)])
+    per = probe_bytes(n, big, sh_count(order), lad.sizes[j0])
+    block = min(4096, 3 * ((n + 1) // 2) ** 2)
+    face = float(resolution) ** 2
+    fixed = 5.0 * (big + order + 1) ** 2 * block + 64.0 * (big + order + 1) * block + 530.0 * face
+    moments = 2.0 * visibility_bytes_per_probe(lad, order, first_level=j0) * probes   # float32: 2 x RGBA16F
+    working = per * min(probes, max(1, CHUNK_BYTES // per)) + fixed + 6.0 * face * probes
+    return max(moments + working, 2.75 * moments)

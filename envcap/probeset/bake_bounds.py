@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap.core.budget import check_bytes, check_count, format_bytes
-from envcap.prefilter.sky_visibility import sky_visibility_chunk
+from envcap.prefilter.sky_visibility import visibility_bake_bytes
 from envcap.probeset.float32_range import FLOAT32_MAX
 from envcap.scene.model import Scene
 
@@ -69,13 +69,10 @@ _RUNG_KEPT_B = 16.0 * 4.0 / 3.0
 _RUNG_CHUNK_B = 33.0
 _RUNG_CHUNK_TEXELS = (64 << 20) / 16.0
 # An opt-in writer adds its working memory on top (conservative: it runs after the bake's transients
-# are freed).  ``sky_visibility`` (envcap.prefilter.sky_visibility): per chunk of probes (one prefilter
-# batch, sky_visibility_chunk) the float64 6-channel stack, the filter's copy, pyramid and GL buffers
-# (400 B per level-0 texel); for the whole set the moments, their packed and half-float copies (80 B).
-# Fitted on peak RSS of the writer's work alone: 32^2 x 30 probes 80 MiB (model 84), 64^2 x 30 292 (337),
-# 32^2 x 240 in chunks of 20 149 (159).
-_SKY_VIS_CHUNK_B = 400.0
-_SKY_VIS_KEPT_B = 80.0
+# are freed).  ``sky_visibility``: envcap.prefilter.sky_visibility.visibility_bake_bytes, the model of
+# its Funk-Hecke filter (a chunk of probes of ~1.2 MB each at most, the float32 moments of the set,
+# 516 KB a probe at N >= 64) and of the write (2.75 x the moments), above the tracemalloc peak of the
+# writer's work by 1.0-1.9x (16^2 x 12 to 256^2 x 20 and 128^2 x 300 probes; docs/lobes.md).
 
 # Seconds at llvmpipe rates (2 CPU cores): per probe (draw setup, files), per level-0 texel of
 # capture, filter and write (composed 1.0 us, fitted 0.6-1.0; other qualities 4.5 us, fitted 4.1),
@@ -163,8 +160,7 @@ def estimate_bake(probes: float, resolution: int, *, filter_levels: bool = True,
         peak += rungs_per_level * (_RUNG_KEPT_B * (texels + face) + _RUNG_CHUNK_B * min(texels, _RUNG_CHUNK_TEXELS))
         seconds += rungs_per_level * texels * _RUNG_TEXEL_S
     if "sky_visibility" in set(writers):
-        chunk = sky_visibility_chunk(int(resolution)) * face
-        peak += _SKY_VIS_CHUNK_B * min(texels, chunk) + _SKY_VIS_KEPT_B * texels
+        peak += visibility_bake_bytes(probes, n)
     peak += _BASE_BYTES
     seconds += probes * _PROBE_S + face * _SKY_TEXEL_S
     return BakeEstimate(probes, int(resolution), texels, peak, seconds)

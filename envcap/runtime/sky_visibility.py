@@ -246,7 +246,7 @@ def composite_changed_sky(street_w: ArrayLike, sky_w: ArrayLike, visible: ArrayL
 
 
 def sky_visibility_of(probe_set: ProbeSet, mode: str = "half_octave", order: int = 2,
-                      max_power: float = DEFAULT_MAX_POWER, quality: Any = "default", ctx: Any = None) -> SkyVisibility:
+                      max_power: float = DEFAULT_MAX_POWER, quality: Any = "harmonics", ctx: Any = None) -> SkyVisibility:
     """The :class:`SkyVisibility` of ``probe_set``'s captures (their level 0 alpha) on
     ``rung_ladder(N, mode)``, as :func:`envcap.runtime.rungs.rung_chains_of` builds the rungs."""
     cap = np.asarray(probe_set.levels[0])

@@ -37,3 +37,14 @@ def test_bench_bake_reports_runs_stages_and_errors(tmp_path):
     g = fl["goal"]
     assert abs(g["capture_alone_share_of_wall_budget"] - fl["capture"]["ms_per_probe"] * 10 / 1000) < 1e-3
     assert "| 4 | capture (" in (tmp_path / "b" / "bake.md").read_text()
+    # --sky-visibility: interleaved pairs without / with the writer, their ratio, the moments' error
+    sv = rec["sky_visibility"]
+    assert len(sv["pairs"]) == 2 and sv["goal_ratio"] == 2.0
+    for pair in sv["pairs"]:
+        assert pair["with"]["writer_s"] > 0 and pair["without"]["writer_s"] == 0
+        assert pair["ratio_wall"] == round(pair["with"]["wall_s"] / pair["without"]["wall_s"], 3)
+    assert sv["ratio_wall_max"] >= sv["ratio_wall_median"] > 0
+    rungs = sv["error"]["harmonics"]
+    assert [e["rung"] for e in rungs] == [0, 1, 2, 3]          # 4^2: one level, rung 0 unfiltered
+    assert rungs[0]["max_abs"] < 1e-7 and 0 < max(e["max_abs"] for e in rungs) < 1e-3   # rung 0: alpha Y in float32
+    assert "--sky-visibility" in (tmp_path / "b" / "bake.md").read_text()

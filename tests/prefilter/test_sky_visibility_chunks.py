@@ -29,7 +29,7 @@ def test_chunks_are_bit_identical_to_the_whole_set(gl_ctx):
     bb = 2 * 6 * n * n * 16                       # chunks (and prefilter batches) of 2 probes: 2 + 2 + 1
     assert sky_visibility_chunk(n, bb) == 2
     alpha = _alpha(p, n)
-    vis = prefilter_sky_visibility(alpha, lad, order, ctx=gl_ctx, batch_bytes=bb)
+    vis = prefilter_sky_visibility(alpha, lad, order, quality="default", ctx=gl_ctx, batch_bytes=bb)
     # the whole set in one call per rung, as before chunking
     a = alpha.astype(np.float64)
     basis = sh_basis(cube_geometry.texel_directions(n), order)

@@ -47,16 +47,22 @@ def _canyon_alpha(n):
     return (((np.abs(d[..., 0]) > 0.45) & (d[..., 1] < 0.5)) | (d[..., 1] < -0.1)).astype(np.float64)
 
 
-def test_visibility_matches_exact_convolution(gl_ctx):
+@pytest.mark.parametrize("quality, atol", [("harmonics", 5e-5), ("default", 2e-4)])
+def test_visibility_matches_exact_convolution(gl_ctx, quality, atol):
     lad = rung_ladder(16, "half_octave")        # sizes (16, 8): level 1 stored (w = 6 .. 1)
     alpha = _canyon_alpha(16)
-    vis = prefilter_sky_visibility(alpha, lad, 2, ctx=gl_ctx)
+    vis = prefilter_sky_visibility(alpha, lad, 2, quality=quality, ctx=gl_ctx)
     assert vis.first_level == 1 and [a.shape for a in vis.levels] == [(4, 6, 8, 8, 9)]
     basis = sh_basis(cube_geometry.texel_directions(16), 2)
     for r in (0, 3):                             # w = 6, 1
         ref = convolve_exact(alpha[..., None] * basis, lad.powers[4 + r], 8)
-        np.testing.assert_allclose(vis.levels[0][r], ref, atol=2e-4)
+        np.testing.assert_allclose(vis.levels[0][r], ref, atol=atol)
     assert vis.bytes_per_probe() == visibility_bytes_per_probe(lad, 2) == 9 * 6 * 8 ** 2 * 8
+
+
+def test_harmonics_refuse_a_lobe_past_their_reach():
+    with pytest.raises(ValueError, match="quality='default'"):
+        prefilter_sky_visibility(_canyon_alpha(256), rung_ladder(256, "half_octave"), 1, max_power=5000.0)   # w = 2046 stored
 
 
 def test_alpha_all_zero_and_all_one(gl_ctx):
