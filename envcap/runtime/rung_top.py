@@ -82,16 +82,36 @@ def top_direction(d: ArrayLike, n: int, w: ArrayLike) -> NDArray[np.float64]:
     i0 = np.floor((f + 1.0) * 0.5 * nf - 0.5)
     ca = 2.0 * (i0 + 0.5) / nf - 1.0                                   # the footprint's centres
     cb = ca + 2.0 / nf
+    # a footprint across one face edge: its texels there are the adjacent face's edge row (GL's
+    # seamless read), centres at 1 / (1 - 1/n) on this face's plane, solid angle on their own face
+    lo, hi = i0 < 0, i0 + 1 > nf - 1
+    seam = lo | hi
+    one = seam & ~(seam[:, ::-1])                                      # one axis only (not a corner)
+    g = nf / max(nf - 1.0, 0.5)
+    sx, sy = one[:, :1], one[:, 1:]
+    acr_x = np.where(lo[:, :1], [[1, 0, 1, 0]], [[0, 1, 0, 1]]).astype(bool) & sx     # entries across x
+    acr_y = np.where(lo[:, 1:], [[1, 1, 0, 0]], [[0, 0, 1, 1]]).astype(bool) & sy
     xs = np.stack([ca[:, 0], cb[:, 0], ca[:, 0], cb[:, 0]], -1)        # order 00, 10, 01, 11
     ys = np.stack([ca[:, 1], ca[:, 1], cb[:, 1], cb[:, 1]], -1)
     lq = np.log(1.0 + xs * xs + ys * ys)
+    lq = np.where(acr_x, np.log(1.0 + (1.0 / g) ** 2 + ys * ys), np.where(acr_y, np.log(1.0 + (1.0 / g) ** 2 + xs * xs), lq))
+    xs, ys = (np.where(acr_x, np.sign(xs) * g, np.where(acr_y, xs * g, xs)),
+              np.where(acr_y, np.sign(ys) * g, np.where(acr_x, ys * g, ys)))
     e = -w[:, None] * minus_log_cos(f, xs, ys) - 1.5 * lq             # log of (d.u)^w Omega_u + a constant
     wt = np.exp(e - e.max(-1, keepdims=True))
     s = wt.sum(-1)
     t = np.stack([wt[:, 1] + wt[:, 3], wt[:, 2] + wt[:, 3]], -1) / s[:, None]
     f2 = ca + t * (2.0 / nf)
+    # past the edge: the point on the adjacent face as far from the edge, at the same place along it
+    over = np.abs(f2) > 1.0
+    bx = (over[:, 0] & one[:, 0])
+    by = (over[:, 1] & one[:, 1])
+    major = np.ones(d.shape[0])
+    major = np.where(bx, 2.0 - np.abs(f2[:, 0]), np.where(by, 2.0 - np.abs(f2[:, 1]), major))
+    f2 = np.where(bx[:, None], np.stack([np.sign(f2[:, 0]), f2[:, 1]], -1), f2)
+    f2 = np.where(by[:, None], np.stack([f2[:, 0], np.sign(f2[:, 1])], -1), f2)
     out = np.empty_like(d)
-    out[rows, k] = np.sign(d[rows, k])
+    out[rows, k] = np.sign(d[rows, k]) * major
     out[rows, p] = f2[:, 0]
     out[rows, q] = f2[:, 1]
     return out.reshape(shape)

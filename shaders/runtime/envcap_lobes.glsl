@@ -60,8 +60,9 @@ float envcap_rung_lod_of_w(float w, float xr[ENVCAP_MAX_RUNGS], int n)
 
 // The top of the ladder (docs/lobes.md, "The top of the ladder"; numpy twin envcap.runtime.rung_top):
 // where one seamless bilinear read of an n-texel level along d gives the cos^w quadrature weights
-// (d.u)^w Omega_u of its 2x2 footprint, as a separable kernel with their marginals.  Face plane:
-// the two minor components of d over the major one (ties X, Y, Z as GL); w up to 1e30.
+// (d.u)^w Omega_u of its 2x2 footprint, as a separable kernel with their marginals (exact for the
+// mirror, one texel, up to the cube's corner cells).  Face plane: the two minor components of d
+// over the major one (ties X, Y, Z as GL); w up to 1e30.
 vec3 envcap_rung_top_dir(vec3 d, float n, float w)
 {
     vec3 a = abs(d);
@@ -69,10 +70,25 @@ vec3 envcap_rung_top_dir(vec3 d, float n, float w)
     float ma = k == 0 ? a.x : (k == 1 ? a.y : a.z);
     if (!(ma > 0.0)) return d;
     vec2 f = (k == 0 ? d.yz : (k == 1 ? d.xz : d.xy)) / ma;
-    vec2 ca = 2.0 * (floor((f + 1.0) * 0.5 * n - 0.5) + 0.5) / n - 1.0;
+    vec2 i0 = floor((f + 1.0) * 0.5 * n - 0.5);
+    vec2 ca = 2.0 * (i0 + 0.5) / n - 1.0;                 // the footprint's centres
     vec2 cb = ca + 2.0 / n;
+    // a footprint across one face edge: its texels there are the adjacent face's edge row (GL's
+    // seamless read), centres at 1 / (1 - 1/n) on this face's plane, solid angle on their own face
+    bvec2 lo = lessThan(i0, vec2(0.0));
+    bvec2 hi = greaterThan(i0 + 1.0, vec2(n - 1.0));
+    bool sx = (lo.x || hi.x) && !(lo.y || hi.y);
+    bool sy = (lo.y || hi.y) && !(lo.x || hi.x);
+    bvec4 ax = bvec4(sx && lo.x, sx && !lo.x, sx && lo.x, sx && !lo.x);       // entries across x
+    bvec4 ay = bvec4(sy && lo.y, sy && lo.y, sy && !lo.y, sy && !lo.y);
+    float g = n / max(n - 1.0, 0.5);
     vec4 xs = vec4(ca.x, cb.x, ca.x, cb.x);
     vec4 ys = vec4(ca.y, ca.y, cb.y, cb.y);
+    vec4 lq = mix(mix(log(1.0 + xs * xs + ys * ys), log(1.0 + 1.0 / (g * g) + xs * xs), ay),
+                  log(1.0 + 1.0 / (g * g) + ys * ys), ax);
+    vec4 xg = mix(mix(xs, xs * g, ay), sign(xs) * g, ax);
+    ys = mix(mix(ys, ys * g, ax), sign(ys) * g, ay);
+    xs = xg;
     vec4 q = 1.0 + xs * xs + ys * ys;
     // -log cos of the angle to each centre, from the small differences (Lagrange's identity for
     // sin^2, then atanh(z), z = sin^2 / (2 - sin^2), by its series): no 1 - cos cancellation
@@ -83,11 +99,15 @@ vec3 envcap_rung_top_dir(vec3 d, float n, float w)
     vec4 z = s2 / (2.0 - s2);
     vec4 z2 = z * z;
     vec4 nlc = z * (1.0 + z2 * (1.0 / 3.0 + z2 * (1.0 / 5.0 + z2 * (1.0 / 7.0 + z2 * (1.0 / 9.0)))));
-    vec4 e = -w * nlc - 1.5 * log(q);
+    vec4 e = -w * nlc - 1.5 * lq;
     vec4 wt = exp(e - max(max(e.x, e.y), max(e.z, e.w)));
     vec2 t = vec2(wt.y + wt.w, wt.z + wt.w) / (wt.x + wt.y + wt.z + wt.w);
     vec2 f2 = ca + t * (2.0 / n);
-    float s = d[k] >= 0.0 ? 1.0 : -1.0;
+    // past the edge: the point on the adjacent face as far from the edge, at the same place along it
+    float major = 1.0;
+    if (sx && abs(f2.x) > 1.0) { major = 2.0 - abs(f2.x); f2.x = sign(f2.x); }
+    else if (sy && abs(f2.y) > 1.0) { major = 2.0 - abs(f2.y); f2.y = sign(f2.y); }
+    float s = (d[k] >= 0.0 ? 1.0 : -1.0) * major;
     return k == 0 ? vec3(s, f2) : (k == 1 ? vec3(f2.x, s, f2.y) : vec3(f2, s));
 }
 
