@@ -17,8 +17,11 @@ nearest-texel cell), one ``textureLod`` and the texel reads of a bilinear fetch.
 
 Face plane: the two minor components of ``d`` over the major one (ties X, Y, Z as GL and
 :mod:`envcap.core.cube`); the texel centres are symmetric about the face centre, so the
-orientation of the face's ``(s, t)`` does not matter and no face table is needed.  Where the
-footprint crosses a face edge the read beyond it is GL's seamless one.
+orientation of the face's ``(s, t)`` does not matter and no face table is needed.  A footprint
+across one face edge reads, as GL's seamless filter does, the adjacent face's edge row: the
+weights use those texels' real centres (at ``1 / (1 - 1/N)`` on this face's plane) and a read
+point past the edge is put on the adjacent face as far from the edge and at the same place along
+it; a cube corner cell (across two edges) keeps the extended plane's centres.
 """
 
 from __future__ import annotations

@@ -87,7 +87,7 @@ def rung_lod(levels: Sequence[ArrayLike], d: ArrayLike, base: ArrayLike, u: Arra
     top = i0 == 0
     if np.any(top):
         n0 = np.asarray(levels[0]).shape[-2]
-        layer0 = np.floor(b[top] + 0.5).astype(np.int64)
+        layer0 = np.clip(np.floor(b[top] + 0.5), 0, np.asarray(levels[0]).shape[0] - 1).astype(np.int64)
         a[top] = top_fetch(levels[0], d[top], layer0, top_power(u[top], n0))
     if np.any(~top):
         a[~top] = cube_sampling.sample_cube_array(levels, d[~top], b[~top] + (i0[~top] % r), (i0[~top] // r).astype(np.float64))
