@@ -1,13 +1,18 @@
-"""Lookup of a rung ladder (numpy twin of ``envcap_rung_of_w`` / ``envcap_rung_fetch`` in
-``shaders/runtime/envcap_lobes.glsl``): the cos^w-convolved environment of one probe from a
-mip-mapped cube-map array holding ``R`` rungs per level (:mod:`envcap.core.rungs`).
+"""Lookup of a rung ladder (numpy twin of ``envcap_rung_lod_of_w`` / ``envcap_rung_lod`` /
+``envcap_rung_fetch`` in ``shaders/runtime/envcap_lobes.glsl``): the cos^w-convolved environment
+of one probe from a mip-mapped cube-map array holding ``R`` rungs per level
+(:mod:`envcap.core.rungs`).
 
-Layer ``base + r`` at level ``j`` holds rung ``i = j R + r``.  A lookup of power ``w`` takes the
-continuous rung position ``u`` (piecewise linear in ``log2(1 + w)`` over the rung table ``xr``,
-clamped to ``[0, n - 1]``; ``w < 0`` and NaN count as 0, ``+inf`` gives 0, as in GLSL) and blends
-rungs ``i0 = floor(u)`` and ``i0 + 1`` linearly in ``u``, each one seamless bilinear fetch at
-its integer level (:mod:`envcap.core.cube_sampling`).  Float64; ``dtype=np.float32`` evaluates
-``u`` in float32 in the GLSL order.
+Layer ``base + r`` at level ``j`` holds rung ``i = j R + r``.  A lookup of power ``w`` takes its
+*lookup position* ``u`` (:func:`rung_lod_of_w`): the continuous rung position (piecewise linear
+in ``log2(1 + w)`` over the rung table ``xr``, at most ``n - 1``; ``w < 0`` and NaN count as 0,
+as in GLSL) and, above rung 0's power, the top segment ``u = -(1 - (1 + w_0) / (1 + w))`` in
+``(-1, 0)`` (``+inf``: -1, the mirror).  :func:`rung_lod` blends rungs ``i0 = floor(u)`` and
+``i0 + 1`` linearly in ``u``, each one seamless bilinear fetch at its integer level
+(:mod:`envcap.core.cube_sampling`), except rung 0, the capture, which is read with the lobe's own
+2x2 footprint kernel at its power (``u <= 0``: at the power ``u`` encodes;
+:mod:`envcap.runtime.rung_top`, ``docs/lobes.md`` "The top of the ladder").  Float64;
+``dtype=np.float32`` evaluates positions in float32 in the GLSL order.
 """
 
 from __future__ import annotations
@@ -21,10 +26,12 @@ from numpy.typing import ArrayLike, NDArray
 from envcap.core import cube_sampling
 from envcap.core.rungs import RungLadder, rung_ladder
 from envcap.prefilter.rungs import prefilter_rungs
+from envcap.runtime.rung_top import top_fetch, top_power
 from envcap.probeset.probe_set import ProbeSet
 from envcap.runtime.mip import lobe_table, z_of_w
 
-__all__ = ["MAX_RUNGS", "RungChains", "rung_table", "rung_position", "rung_fetch", "rung_chains_of", "rung_street_uniforms"]
+__all__ = ["MAX_RUNGS", "RungChains", "rung_table", "rung_position", "rung_lod_of_w", "rung_lod", "rung_fetch",
+           "rung_chains_of", "rung_street_uniforms"]
 
 MAX_RUNGS = 48
 """Most rungs of a rung table (length of the GLSL ``xr`` array).  GLSL ``#define ENVCAP_MAX_RUNGS``."""
@@ -42,27 +49,68 @@ def rung_position(w: ArrayLike, xr: ArrayLike, dtype: Any = np.float64) -> NDArr
     return z_of_w(w, xr, dtype)
 
 
-def rung_fetch(levels: Sequence[ArrayLike], d: ArrayLike, base: ArrayLike, w: ArrayLike, xr: ArrayLike,
-               per_level: int) -> NDArray[np.float64]:
-    """``(..., C)``: rungs ``floor(u)`` and the next of the cube-map array ``levels`` (``[j]``:
-    ``(layers, 6, N_j, N_j, C)``) along unit ``d`` ``(..., 3)`` at layers ``base + i % per_level``,
-    levels ``i // per_level``, blended linearly in ``u = rung_position(w, xr)``."""
+def rung_lod_of_w(w: ArrayLike, xr: ArrayLike, dtype: Any = np.float64) -> NDArray:
+    """Lookup position of power(s) ``w`` on the table ``xr`` (GLSL ``envcap_rung_lod_of_w``, never
+    raises): :func:`rung_position` up to rung 0's power ``w_0``, above it the top segment
+    ``-(1 - 2^(xr[0] - log2(1 + w)))`` in ``(-1, 0)``; ``+inf`` gives -1 (the mirror)."""
+    xr = np.asarray(xr, dtype=dtype)
+    w = np.asarray(w, dtype=dtype)
+    u = np.asarray(rung_position(w, xr, dtype), dtype=dtype)
+    with np.errstate(invalid="ignore", over="ignore"):
+        x = np.log2(dtype(1.0) + np.where(w > 0, w, dtype(0.0)))
+    top = ~(x < xr[0]) & ~np.isnan(x)
+    u[top] = -(dtype(1.0) - np.exp2(xr[0] - x[top]))
+    return u
+
+
+def rung_lod(levels: Sequence[ArrayLike], d: ArrayLike, base: ArrayLike, u: ArrayLike,
+             per_level: int) -> NDArray[np.float64]:
+    """``(..., C)`` at lookup position ``u`` (GLSL ``envcap_rung_lod``; ``u`` clamped to ``>= -1``,
+    NaN -> 0, at most the last rung): rungs ``floor(u)`` and the next of the cube-map array
+    ``levels`` (``[j]``: ``(layers, 6, N_j, N_j, C)``) along unit ``d`` ``(..., 3)`` at layers
+    ``base + i % per_level``, levels ``i // per_level``, blended linearly in ``u``; rung 0 is
+    :func:`envcap.runtime.rung_top.top_fetch` at :func:`envcap.runtime.rung_top.top_power` of
+    ``min(u, 0)`` (its own power for ``0 <= u < 1``)."""
     if int(per_level) < 1:
         raise ValueError(f"per_level must be >= 1, got {per_level}")
     r = int(per_level)
     d = np.asarray(d, dtype=np.float64)
     shape = d.shape[:-1]
-    n = np.asarray(xr).size
-    if len(levels) * r < n:
-        raise ValueError(f"{len(levels)} levels x {r} rungs hold fewer than the table's {n} rungs")
-    u = np.broadcast_to(rung_position(w, xr), shape)
+    u = np.asarray(np.broadcast_to(np.asarray(u, np.float64), shape))
+    u = np.where(u > -1.0, u, np.where(u <= -1.0, -1.0, 0.0))
     b = np.broadcast_to(np.asarray(base, dtype=np.float64), shape)
-    i0 = np.floor(u).astype(np.int64)
-    i1 = np.minimum(i0 + 1, n - 1)
-    t = (u - i0)[..., None]
-    a = cube_sampling.sample_cube_array(levels, d, b + (i0 % r), (i0 // r).astype(np.float64))
-    c = cube_sampling.sample_cube_array(levels, d, b + (i1 % r), (i1 // r).astype(np.float64))
-    return np.where(t > 0, a + t * (c - a), a)
+    up = np.maximum(u, 0.0)
+    i0 = np.floor(up).astype(np.int64)
+    i1 = i0 + 1
+    t = (up - i0)[..., None]
+    a = np.zeros(shape + (np.asarray(levels[0]).shape[-1],))
+    top = i0 == 0
+    if np.any(top):
+        n0 = np.asarray(levels[0]).shape[-2]
+        layer0 = np.clip(np.floor(b[top] + 0.5), 0, np.asarray(levels[0]).shape[0] - 1).astype(np.int64)
+        a[top] = top_fetch(levels[0], d[top], layer0, top_power(u[top], n0))
+    if np.any(~top):
+        a[~top] = cube_sampling.sample_cube_array(levels, d[~top], b[~top] + (i0[~top] % r), (i0[~top] // r).astype(np.float64))
+    out = a.copy()
+    two = t[..., 0] > 0
+    if np.any(two):
+        c = cube_sampling.sample_cube_array(levels, d[two], b[two] + (i1[two] % r), (i1[two] // r).astype(np.float64))
+        out[two] = a[two] + t[two] * (c - a[two])
+    return out
+
+
+def rung_fetch(levels: Sequence[ArrayLike], d: ArrayLike, base: ArrayLike, w: ArrayLike, xr: ArrayLike,
+               per_level: int) -> NDArray[np.float64]:
+    """``(..., C)``: :func:`rung_lod` at the lookup position ``rung_lod_of_w(w, xr)`` of power(s)
+    ``w`` (GLSL ``envcap_rung_fetch``); ``levels`` must hold the table's rungs."""
+    if int(per_level) < 1:
+        raise ValueError(f"per_level must be >= 1, got {per_level}")
+    n = np.asarray(xr).size
+    if len(levels) * int(per_level) < n:
+        raise ValueError(f"{len(levels)} levels x {per_level} rungs hold fewer than the table's {n} rungs")
+    d = np.asarray(d, dtype=np.float64)
+    u = np.broadcast_to(rung_lod_of_w(w, xr), d.shape[:-1])
+    return rung_lod(levels, d, base, u, per_level)
 
 
 @dataclass(frozen=True)

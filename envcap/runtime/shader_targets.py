@@ -67,7 +67,8 @@ TARGETS: dict[str, ShaderTarget] = {
         ShaderTarget("webgl2", "GLSL ES 3.00 (WebGL2)", "#version 300 es",
                      (("ENVCAP_BINDING(n)", ""), ("ENVCAP_IN(n)", ""), ("ENVCAP_OUT(n)", "layout(location = n)"),
                       ("ENVCAP_PROBES_SAMPLER", "sampler2DArray"),
-                      ("ENVCAP_PROBES_LOD(probes, dir, layer, lod)", "envcap_face_atlas_lod(probes, dir, layer, lod)")),
+                      ("ENVCAP_PROBES_LOD(probes, dir, layer, lod)", "envcap_face_atlas_lod(probes, dir, layer, lod)"),
+                      ("ENVCAP_PROBES_FACE_SIZE(probes)", "envcap_face_atlas_size(textureSize(probes, 0).x)")),
                      es=True, probes="face_atlas", includes=("runtime/envcap_face_atlas.glsl",)),
         ShaderTarget("vulkan", "Vulkan GLSL 4.50 (SPIR-V)", "#version 450 core",
                      (("ENVCAP_BINDING(n)", "layout(set = 0, binding = n)"),) + _LOCATIONS

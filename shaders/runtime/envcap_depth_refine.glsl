@@ -88,7 +88,7 @@ vec3 envcap_sample_depth_refine(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER
     // parallax and probe fetches in the street's frame; the sky along the world direction d
     vec4 rq = envcap_depth_refine(dist, street.pos[i].w, x, envcap_frame_dir(d, street.frame), street.pos[i].xyz,
                                   street.planes[i], street.along);
-    float zs = envcap_clamp_level(envcap_z_of_w(max(w, 0.0) * rq.w, street.xk, street.nlevels), street.nlevels);
+    float zs = envcap_lod_of_w(max(w, 0.0) * rq.w, street.xk, street.nlevels);
     return envcap_over_sky(ENVCAP_PROBES_LOD(probes, rq.xyz, street.pos[i].w, zs), sky, d, w, street);
 }
 

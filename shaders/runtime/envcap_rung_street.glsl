@@ -12,9 +12,10 @@
 // * EnvcapStreet.xk: the rung table (envcap.runtime.rungs.rung_table(ladder.powers), up to
 //   ENVCAP_MAX_LEVELS = 48 entries here), nlevels: the number of rungs
 //   (envcap.runtime.rungs.rung_street_uniforms fills both).
-// Every ENVCAP_PROBES_LOD(probes, dir, p, z) of the runtime becomes envcap_rung_lod at rung position
-// z (z(w) over the rung table is the rung position of w): two bilinear fetches, the texel reads of
-// the trilinear fetch it replaces; every sky lookup likewise.
+// Every ENVCAP_PROBES_LOD(probes, dir, p, z) of the runtime becomes envcap_rung_lod at lookup
+// position z = envcap_rung_lod_of_w(w) (envcap_lod_of_w: the rung position of w, and above rung 0
+// the top segment up to the mirror): two bilinear fetches, the texel reads of the trilinear fetch
+// it replaces; every sky lookup likewise.
 #ifdef ENVCAP_RUNTIME_GLSL
 #error "include runtime/envcap_rung_street.glsl before runtime/envcap_runtime.glsl"
 #endif
@@ -30,6 +31,7 @@
 #define ENVCAP_PROBES_LOD(probes, dir, layer, lod) envcap_rung_lod(probes, dir, (layer) * float(ENVCAP_RUNGS_PER_LEVEL), lod, ENVCAP_RUNGS_PER_LEVEL)
 #define ENVCAP_SKY_SAMPLER ENVCAP_PROBES_SAMPLER
 #define ENVCAP_SKY_LOD(sky, dir, lod) envcap_rung_lod(sky, dir, 0.0, lod, ENVCAP_RUNGS_PER_LEVEL)
+#define ENVCAP_RUNG_LADDER
 #include "runtime/envcap_runtime.glsl"
 
 #endif  // ENVCAP_RUNG_STREET_GLSL

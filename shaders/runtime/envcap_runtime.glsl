@@ -56,6 +56,19 @@ float envcap_clamp_level(float z, int n)
     return (z > 0.0) ? min(z, float(max(n, 1) - 1)) : 0.0;
 }
 
+// The level (the argument of ENVCAP_PROBES_LOD / ENVCAP_SKY_LOD) of a lookup of power w on the
+// street's table: z(w) clamped to the chain; on a rung ladder (runtime/envcap_rung_street.glsl
+// defines ENVCAP_RUNG_LADDER) the lookup position envcap_rung_lod_of_w, whose top segment
+// reaches the mirror.
+float envcap_lod_of_w(float w, float xk[ENVCAP_MAX_LEVELS], int n)
+{
+#ifdef ENVCAP_RUNG_LADDER
+    return envcap_rung_lod_of_w(w, xk, n);
+#else
+    return envcap_clamp_level(envcap_z_of_w(w, xk, n), n);
+#endif
+}
+
 // Sky composite: street radiance is premultiplied, so the visible sky adds (1 - alpha) * sky.
 // Alpha is clamped to [0, 1] (filtering and half floats can step just outside).
 vec3 envcap_composite(vec4 street, vec3 sky)
@@ -73,10 +86,10 @@ vec3 envcap_sample_probe(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, v
                          float xk[ENVCAP_MAX_LEVELS], int nlevels)
 {
     vec4 par = envcap_parallax(x, d, p, planes, along);
-    float zs = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, par.w), xk, nlevels), nlevels);
+    float zs = envcap_lod_of_w(envcap_shift_power(w, par.w), xk, nlevels);
     vec4 st = ENVCAP_PROBES_LOD(probes, par.xyz, layer, zs);
     if (!(st.a < 1.0)) return st.rgb;            // street covers the lobe: no sky fetch needed
-    float zk = envcap_clamp_level(envcap_z_of_w(w, xk, nlevels), nlevels);
+    float zk = envcap_lod_of_w(w, xk, nlevels);
     return envcap_composite(st, ENVCAP_SKY_LOD(sky, dsky, zk).rgb);
 }
 
@@ -98,12 +111,12 @@ vec3 envcap_sample_blended(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky,
     vec3 df = envcap_frame_dir(d, street.frame);
     vec4 a = envcap_parallax(x, df, street.pos[i0].xyz, street.planes[i0], street.along);
     vec4 b = envcap_parallax(x, df, street.pos[i1].xyz, street.planes[i1], street.along);
-    float za = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, a.w), street.xk, street.nlevels), street.nlevels);
-    float zb = envcap_clamp_level(envcap_z_of_w(envcap_shift_power(w, b.w), street.xk, street.nlevels), street.nlevels);
+    float za = envcap_lod_of_w(envcap_shift_power(w, a.w), street.xk, street.nlevels);
+    float zb = envcap_lod_of_w(envcap_shift_power(w, b.w), street.xk, street.nlevels);
     vec4 st = (1.0 - pr.z) * ENVCAP_PROBES_LOD(probes, a.xyz, street.pos[i0].w, za)
             + pr.z * ENVCAP_PROBES_LOD(probes, b.xyz, street.pos[i1].w, zb);
     if (!(st.a < 1.0)) return st.rgb;            // street covers the lobe: no sky fetch needed
-    float zk = envcap_clamp_level(envcap_z_of_w(w, street.xk, street.nlevels), street.nlevels);
+    float zk = envcap_lod_of_w(w, street.xk, street.nlevels);
     return envcap_composite(st, ENVCAP_SKY_LOD(sky, d, zk).rgb);
 }
 
@@ -111,7 +124,7 @@ vec3 envcap_sample_blended(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky,
 vec3 envcap_over_sky(vec4 st, ENVCAP_SKY_SAMPLER sky, vec3 d, float w, EnvcapStreet street)
 {
     if (!(st.a < 1.0)) return st.rgb;
-    float zk = envcap_clamp_level(envcap_z_of_w(w, street.xk, street.nlevels), street.nlevels);
+    float zk = envcap_lod_of_w(w, street.xk, street.nlevels);
     return envcap_composite(st, ENVCAP_SKY_LOD(sky, d, zk).rgb);
 }
 
@@ -121,7 +134,7 @@ vec3 envcap_sample_oblique(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky,
 {
     int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
     vec4 par = envcap_parallax_oblique(x, envcap_frame_dir(d, street.frame), street.pos[i].xyz, street.planes[i], street.along);
-    float zs = envcap_clamp_level(envcap_z_of_w(max(w, 0.0) * par.w, street.xk, street.nlevels), street.nlevels);
+    float zs = envcap_lod_of_w(max(w, 0.0) * par.w, street.xk, street.nlevels);
     return envcap_over_sky(ENVCAP_PROBES_LOD(probes, par.xyz, street.pos[i].w, zs), sky, d, w, street);
 }
 
@@ -134,7 +147,7 @@ vec3 envcap_sample_footprint(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sk
     vec2 v = envcap_sigma_footprint(x, envcap_frame_dir(d, street.frame), w, street.pos[i].xyz, street.planes[i],
                                     street.along, r, m);
     float wp = envcap_footprint_power(sqrt(v.x * v.y));
-    float zs = envcap_clamp_level(envcap_z_of_w(wp, street.xk, street.nlevels), street.nlevels);
+    float zs = envcap_lod_of_w(wp, street.xk, street.nlevels);
     return envcap_over_sky(ENVCAP_PROBES_LOD(probes, r, street.pos[i].w, zs), sky, d, w, street);
 }
 
@@ -153,7 +166,7 @@ vec3 envcap_sample_aniso(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, v
                                     street.along, r, m);
     float n = float(ENVCAP_ANISO_TAPS);
     float vt = max(v.x, v.y / (1.0 + (n * n - 1.0) / 3.0));
-    float zs = envcap_clamp_level(envcap_z_of_w(envcap_footprint_power(vt), street.xk, street.nlevels), street.nlevels);
+    float zs = envcap_lod_of_w(envcap_footprint_power(vt), street.xk, street.nlevels);
     float spread = sqrt(max(v.y - vt, 0.0));
     float step_ = n > 1.0 ? sqrt(12.0 / (n * n - 1.0)) : 0.0;
     vec4 st = vec4(0.0);
@@ -175,8 +188,7 @@ vec3 envcap_sample_sigma(ENVCAP_PROBES_SAMPLER probes, ENVCAP_SKY_SAMPLER sky, v
     vec3 r, m, img[4];
     vec2 v = envcap_sigma_footprint_rays(x, envcap_frame_dir(d, street.frame), w, street.pos[i].xyz, street.planes[i],
                                          street.along, r, m, img);
-    float zs = envcap_clamp_level(envcap_z_of_w(envcap_footprint_power((1.0 - ENVCAP_TAP_SHARE) * v.x), street.xk,
-                                               street.nlevels), street.nlevels);
+    float zs = envcap_lod_of_w(envcap_footprint_power((1.0 - ENVCAP_TAP_SHARE) * v.x), street.xk, street.nlevels);
     float beta = sqrt(ENVCAP_TAP_SHARE) / ENVCAP_SPREAD;
     vec4 st = vec4(0.0);
     for (int k = 0; k < 4; ++k) {

@@ -13,6 +13,7 @@ import jsonschema
 import numpy as np
 import pytest
 
+from envcap.core import cube_sampling
 from envcap.core.color import luminance
 from envcap.formats.ktx2 import read_ktx2
 from envcap.gpu.cube_array import CubeArrayTexture
@@ -102,6 +103,34 @@ def test_read_back_lookups_hold_the_exact_lobe(baked):
     # (the r = 0 chain: median 11 %)
     assert np.median(errs) < 0.015 and errs.max() < 0.04, errs
     assert np.median(errs_paper) > 3 * np.median(errs), (errs, errs_paper)
+
+
+def test_read_back_lookups_hold_the_exact_lobe_up_to_the_mirror(baked):
+    # The top of the ladder (docs/lobes.md): from rung 1's power to the mirror, the read-back rungs
+    # composited over the sky's against the float64 exact lobe of the capture over the sky; the
+    # control reads rung 0 bilinearly (the lookup before) past rung 0's power.
+    back, _ = baked
+    chains = ProbeChains.from_probe_set(back)
+    sky = SkyChain(back.sky_rungs, chains.ladder)
+    cap = np.asarray(back.levels[0][1], np.float64)
+    sky0 = np.asarray(back.sky_levels[0], np.float64)
+    env = cap + (1.0 - cap[..., 3:4]) * sky0
+    d = _dirs(np.random.default_rng(11), 1024)
+    w1, w0 = chains.ladder.powers[1], chains.ladder.powers[0]
+    errs, before = {}, {}
+    for w in (w1, np.sqrt(w1 * w0), w0, 3 * w0, 1e5, 1e7, np.inf):
+        ref = luminance(convolve_exact_dirs(env, min(w, 1e300), d))
+        got = composite(chains.fetch(d, np.ones(len(d)), w), sample_sky(sky, d, w, chains.xk))
+        errs[w] = np.sqrt(np.mean((luminance(got) - ref) ** 2) / np.mean(ref ** 2))
+        if w >= w0:
+            bil = composite(cube_sampling.bilinear(back.rungs[0], d, np.full(len(d), 4)),
+                            cube_sampling.bilinear(back.sky_rungs[0], d, np.zeros(len(d), int)))
+            before[w] = np.sqrt(np.mean((luminance(bil) - ref) ** 2) / np.mean(ref ** 2))
+    e = np.array(list(errs.values()))
+    # measured at 16^2: 4.5 % at rung 1 (its own bilinear read), 3.7 / 1.9 / 1.3 % at sqrt(w_1 w_0),
+    # w_0, 3 w_0, 4e-6 at 1e5, 0 at 1e7 and the mirror; rung 0 read bilinearly: 9.2 / 18 / 23 / 23 / 23 %
+    assert e.max() < 0.05 and errs[1e5] < 1e-3 and errs[1e7] < 1e-9 and errs[np.inf] < 1e-9, errs
+    assert all(before[w] > 3 * errs[w] for w in before), (before, errs)
 
 
 def test_glsl_rung_street_on_the_baked_textures_matches_numpy(baked, gl_ctx):
