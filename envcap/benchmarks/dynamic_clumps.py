@@ -17,10 +17,12 @@ the runtime's per-sphere fractions (envcap's form, :func:`envcap.dynamic.cap_lob
 :func:`envcap.dynamic.quadrature.union_lobe_fraction` (float64, exact arcs on 32768 rings).
 
 **Cost**: numpy, :func:`envcap.dynamic.terms.dynamic_terms` for a two-lobe material at points
-around a clump, per rule, against the ``"overlap"`` rule in the same run; GLSL, the full-screen
-pass of :func:`envcap.benchmarks.dynamic_street_cost.gl_cost` (Eq. 3 + ``envcap_dynamic_terms``,
-8 spheres per point) with ``ENVCAP_DYNAMIC_COMBINE`` 0 and 4, as multiples of a plain Eq. 3
-(llvmpipe here: a CPU rasterizer).
+around a clump, per rule, against the ``"overlap"`` rule in the same run; GLSL (llvmpipe here: a
+CPU rasterizer), ``envcap_sphere_shares`` alone for one lobe aimed at a clump of 8 spheres (every
+slot live: the rule's worst case) per ``ENVCAP_DYNAMIC_COMBINE`` (``sum``: the per-sphere
+fractions and nothing more), and the full-screen pass of
+:func:`envcap.benchmarks.dynamic_street_cost.gl_cost` (Eq. 3 + ``envcap_dynamic_terms``, 8 spheres
+per point) with the overlap and the rings rule, as multiples of a plain Eq. 3.
 """
 
 from __future__ import annotations
@@ -137,6 +139,44 @@ def numpy_cost(points: int = 2048, repeats: int = 5, seed: int = SEED) -> dict[s
     return {"points": points, "median_s": med, "ratio_to_overlap": {k: t / med["overlap"] for k, t in med.items()}}
 
 
+def shares_gl_cost(points: int = 1 << 16, repeats: int = 3, seed: int = SEED) -> dict[str, Any]:
+    """Seconds per ``points`` lobes of ``envcap_sphere_shares`` (8 spheres of a clump, all live) per
+    rule (``ENVCAP_DYNAMIC_COMBINE``), less a run of ``points / 16`` (after one to compile), best of
+    ``repeats``; ratios to the overlap rule, of the whole call and of the combining step alone
+    (less the ``sum`` rule's time: the per-sphere fractions)."""
+    from envcap.gpu.context import create_context
+    from envcap.gpu.glsl_harness import run_glsl
+
+    rng = np.random.default_rng(seed)
+    sb = SphereBuffer(rng.normal(size=(8, 3)) * 0.15 + (2.0, 0.0, 0.0), rng.uniform(0.25, 0.35, 8), np.full((8, 3), 0.5))
+    body = """EnvcapSphereSet s = envcap_select_spheres(vec3(0.0), vec3(0.0));
+vec4 occ[ENVCAP_SPHERE_CAP];
+o[i] = vec4(envcap_sphere_shares(s, c[i].xyz, c[i].w, occ), occ[0].w, occ[7].w, 0.0);"""
+    uni = {"envcap_spheres": np.c_[sb.centers, sb.radii], "envcap_sphere_albedo": sb.albedo, "envcap_sphere_count": 8}
+    ctx = create_context()
+    secs = {}
+    try:
+        for name, mode in (("sum", 2), ("overlap", 0), ("rings", 4)):
+            best = math.inf
+            for _ in range(repeats):
+                t = []
+                for n in (points // 16, points // 16, points):             # the first: compile (cached after)
+                    C = np.array([1.0, 0.0, 0.0]) + rng.normal(size=(n, 3)) * 0.1
+                    w = np.exp(rng.uniform(0.0, math.log(1000.0), n))
+                    t0 = time.perf_counter()
+                    run_glsl(ctx, body, {"c": np.c_[C, w]}, {"o": 3}, includes=("runtime/envcap_dynamic_spheres.glsl",),
+                             defines={"ENVCAP_DYNAMIC_COMBINE": mode}, uniforms=uni)
+                    t.append(time.perf_counter() - t0)
+                best = min(best, t[2] - t[1])
+            secs[name] = best * points / (points - points // 16)
+        device = ctx.info.get("GL_RENDERER", "?")
+    finally:
+        ctx.release()
+    step = {k: secs[k] - secs["sum"] for k in ("overlap", "rings")}
+    return {"device": device, "points": points, "seconds": secs, "ratio_to_overlap": secs["rings"] / secs["overlap"],
+            "combine_step_ratio": step["rings"] / step["overlap"] if step["overlap"] > 0 else math.nan}
+
+
 def markdown(res: dict[str, Any]) -> str:
     er = res["errors"]
     cells = lambda r: " | ".join(f"{r[k]['mean']:.4f} / {r[k]['p95']:.4f} / {r[k]['max']:.4f}" for k in RULES)  # noqa: E731
@@ -150,6 +190,11 @@ def markdown(res: dict[str, Any]) -> str:
     nc = res["numpy_cost"]
     out += ["", f"numpy `dynamic_terms` ({nc['points']} points, 2 lobes, 8 spheres), time / the overlap rule's: "
             + ", ".join(f"{k} {v:.2f}" for k, v in nc["ratio_to_overlap"].items())]
+    sc = res.get("shares_gl_cost")
+    if sc:
+        out += ["", f"GLSL `envcap_sphere_shares` ({sc['device']}, one lobe, 8 live spheres), ns per lobe: "
+                + ", ".join(f"{k} {1e9 * v / sc['points']:.0f}" for k, v in sc["seconds"].items())
+                + f"; rings / overlap {sc['ratio_to_overlap']:.2f} (the combining step alone: {sc['combine_step_ratio']:.2f})"]
     gc = res.get("gl_cost")
     if gc:
         ratio = gc["ratio_to_plain"]
@@ -170,6 +215,7 @@ def run(args: argparse.Namespace) -> int:
     res: dict[str, Any] = {"errors": clump_errors(args.clumps, nodes=args.nodes), "numpy_cost": numpy_cost()}
     if args.gl_size > 0:
         from envcap.benchmarks.dynamic_street_cost import gl_cost
+        res["shares_gl_cost"] = shares_gl_cost()
         res["gl_cost"] = gl_cost(size=args.gl_size, spheres=8)
     table = markdown(res)
     print(table)
