@@ -139,10 +139,11 @@ def numpy_cost(points: int = 2048, repeats: int = 5, seed: int = SEED) -> dict[s
     return {"points": points, "median_s": med, "ratio_to_overlap": {k: t / med["overlap"] for k, t in med.items()}}
 
 
-def shares_gl_cost(points: int = 1 << 16, repeats: int = 3, seed: int = SEED) -> dict[str, Any]:
-    """Seconds per ``points`` lobes of ``envcap_sphere_shares`` (8 spheres of a clump, all live) per
-    rule (``ENVCAP_DYNAMIC_COMBINE``), less a run of ``points / 16`` (after one to compile), best of
-    ``repeats``; ratios to the overlap rule, of the whole call and of the combining step alone
+def shares_gl_cost(points: int = 1 << 16, repeats: int = 3, seed: int = SEED,
+                   nodes: int = UNION_NODES) -> dict[str, Any]:
+    """Seconds per ``points`` lobes of ``envcap_sphere_shares`` (8 spheres of a clump, all live;
+    ``nodes`` rings) per rule (``ENVCAP_DYNAMIC_COMBINE``), less a run of ``points / 16`` (after
+    one to compile), best of ``repeats``; ratios to the overlap rule, of the whole call and of the combining step alone
     (less the ``sum`` rule's time: the per-sphere fractions)."""
     from envcap.gpu.context import create_context
     from envcap.gpu.glsl_harness import run_glsl
@@ -165,7 +166,7 @@ o[i] = vec4(envcap_sphere_shares(s, c[i].xyz, c[i].w, occ), occ[0].w, occ[7].w, 
                     w = np.exp(rng.uniform(0.0, math.log(1000.0), n))
                     t0 = time.perf_counter()
                     run_glsl(ctx, body, {"c": np.c_[C, w]}, {"o": 3}, includes=("runtime/envcap_dynamic_spheres.glsl",),
-                             defines={"ENVCAP_DYNAMIC_COMBINE": mode}, uniforms=uni)
+                             defines={"ENVCAP_DYNAMIC_COMBINE": mode, "ENVCAP_UNION_NODES": nodes}, uniforms=uni)
                     t.append(time.perf_counter() - t0)
                 best = min(best, t[2] - t[1])
             secs[name] = best * points / (points - points // 16)
@@ -215,7 +216,7 @@ def run(args: argparse.Namespace) -> int:
     res: dict[str, Any] = {"errors": clump_errors(args.clumps, nodes=args.nodes), "numpy_cost": numpy_cost()}
     if args.gl_size > 0:
         from envcap.benchmarks.dynamic_street_cost import gl_cost
-        res["shares_gl_cost"] = shares_gl_cost()
+        res["shares_gl_cost"] = shares_gl_cost(nodes=args.nodes)
         res["gl_cost"] = gl_cost(size=args.gl_size, spheres=8)
     table = markdown(res)
     print(table)

@@ -3,8 +3,9 @@
 For each sphere count, the full-screen pass of :func:`envcap.benchmarks.dynamic_street_cost.gl_cost`
 (``size^2`` shading points, plastic: one diffuse and one specular lobe) with that many spheres
 around every point, as a multiple of a plain Eq. 3 in the same run, for the paper's form (overlap
-rule), envcap's form with the overlap rule and envcap's defaults (the rings rule); the slope gives the cost of one more sphere, the intercept the fixed cost of the terms
-(the K = ENVCAP_SPHERE_CAP slots are visited whatever the count).
+rule), envcap's form with the overlap rule and envcap's defaults (the rings rule); the slope gives
+the cost of one more sphere, the intercept the fixed cost of the terms (the K = ENVCAP_SPHERE_CAP
+slots are visited whatever the count).
 
     envcap bench dynamic_cost --out DIR [--counts 1 4 8 16] [--size 256]
 """
