@@ -17,8 +17,10 @@ The error is ``|f_eq7 - f_true|`` (fraction of the lobe's light, what a shader g
 table gives, per ``(theta, w)``, ``f_true`` at ``gamma = 0`` and the largest error over the
 ``gamma`` grid; a second table bins the errors of ``paper`` and ``envcap`` by ``w theta^2`` (where
 the paper's 0.7 exponents hold).  Then many spheres (:mod:`envcap.benchmarks.dynamic_union`): the
-union of caps per form and overlap rule, and the blocked / bounced radiance.  Writes
-``dynamic.json`` and ``dynamic.md`` to ``--out``.  No GPU; about a minute.
+union of caps per form and combine rule, and the blocked / bounced radiance.  Writes
+``dynamic.json`` and ``dynamic.md`` to ``--out``.  No GPU; about a minute.  ``--paper-threshold``
+instead scans, per power, the smallest ``theta`` where the paper's error passes 0.01
+(:func:`paper_threshold`; ``paper_threshold.json`` / ``.md``).
 """
 
 from __future__ import annotations
