@@ -17,8 +17,10 @@ The error is ``|f_eq7 - f_true|`` (fraction of the lobe's light, what a shader g
 table gives, per ``(theta, w)``, ``f_true`` at ``gamma = 0`` and the largest error over the
 ``gamma`` grid; a second table bins the errors of ``paper`` and ``envcap`` by ``w theta^2`` (where
 the paper's 0.7 exponents hold).  Then many spheres (:mod:`envcap.benchmarks.dynamic_union`): the
-union of caps per form and overlap rule, and the blocked / bounced radiance.  Writes
-``dynamic.json`` and ``dynamic.md`` to ``--out``.  No GPU; about a minute.
+union of caps per form and combine rule, and the blocked / bounced radiance.  Writes
+``dynamic.json`` and ``dynamic.md`` to ``--out``.  No GPU; about a minute.  ``--paper-threshold``
+instead scans, per power, the smallest ``theta`` where the paper's error passes 0.01
+(:func:`paper_threshold`; ``paper_threshold.json`` / ``.md``).
 """
 
 from __future__ import annotations
@@ -42,12 +44,19 @@ GAMMA_MULTIPLES = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0)
 VARIANTS = ("paper", "k=0.5", "k=1", "matched", "envcap")
 BINS = (0.0, 0.1, 0.3, 1.0, 3.0, 10.0, 100.0, math.inf)
 """Edges of the ``w theta^2`` bins (theta in rad)."""
+THRESHOLD_POWERS = (0.0, 0.5, 1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0)
+"""Powers of the ``--paper-threshold`` scan."""
+THRESHOLD_ERROR = 0.01
+"""The error (fraction of the lobe's light) whose first crossing ``--paper-threshold`` finds."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output directory (JSON + Markdown table)")
     p.add_argument("--cost", action="store_true",
                    help="also time the GLSL forms on the GL driver at hand (llvmpipe here: a CPU proxy)")
+    p.add_argument("--paper-threshold", action="store_true",
+                   help="only scan, per power w, the smallest cap angle theta at which the paper's Eq. 4-7 "
+                        f"errs by more than {THRESHOLD_ERROR} (paper_threshold.json / .md; ~3 min)")
 
 
 def glsl_cost(nodes_list: tuple[int, ...] = (2, 3, 4, 8), n: int = 200_000, repeats: int = 3) -> list[dict]:
@@ -145,6 +154,42 @@ def binned(rows: list[dict]) -> list[dict]:
     return out
 
 
+def paper_max_error(theta: float, w: float, gammas: int = 91) -> tuple[float, float]:
+    """``(err, gamma)``: the paper's largest ``|f_Eq7 - f_true|`` over ``gammas`` angles in
+    ``[0, min(theta + pi/2, pi)]`` (beyond, neither blocks anything) and where it is (rad)."""
+    best = (0.0, 0.0)
+    for g in np.linspace(0.0, min(theta + math.pi / 2, math.pi), gammas):
+        e = abs(eq7_fraction(theta, float(g), w, "paper") - cap_lobe_integral(theta, float(g), w) * (1 + w) / (2 * math.pi))
+        best = max(best, (e, float(g)))
+    return best
+
+
+def paper_threshold(powers: tuple[float, ...] = THRESHOLD_POWERS, tol: float = THRESHOLD_ERROR,
+                    step_deg: float = 0.5, refine_deg: float = 0.05) -> list[dict]:
+    """Per power ``w``: the smallest cap half-angle ``theta`` (deg) at which the paper's form errs by
+    more than ``tol`` at some ``gamma`` (``theta`` up in ``step_deg`` steps from ``step_deg``, then
+    bisection to ``refine_deg``), with ``w theta^2`` (rad) there: below it the paper holds."""
+    out = []
+    for w in powers:
+        ok, bad = 0.0, step_deg
+        while bad < 89.5 and paper_max_error(math.radians(bad), w)[0] <= tol:
+            ok, bad = bad, bad + step_deg
+        while bad - ok > refine_deg:
+            mid = 0.5 * (ok + bad)
+            ok, bad = (mid, bad) if paper_max_error(math.radians(mid), w)[0] <= tol else (ok, mid)
+        err, g = paper_max_error(math.radians(bad), w)
+        out.append({"w": w, "theta_deg": bad, "w_theta2": w * math.radians(bad) ** 2, "err": err,
+                    "gamma_deg": math.degrees(g)})
+    return out
+
+
+def threshold_markdown(rows: list[dict]) -> str:
+    return ("| w | theta where the paper first errs > 0.01 | w theta^2 there | error | at gamma |\n"
+            "| --- | --- | --- | --- | --- |\n" + "".join(
+                f"| {r['w']:g} | {r['theta_deg']:.2f}° | {r['w_theta2']:.3f} | {r['err']:.4f} | {r['gamma_deg']:.1f}° |\n"
+                for r in rows))
+
+
 def union_markdown(rows: list[dict], keys: list[str]) -> str:
     head = "| scene | w | " + " | ".join(keys) + " |\n" + "| --- " * (2 + len(keys)) + "|\n"
     return head + "".join(f"| {r['scene']} | {r['w']:g} | " + " | ".join(
@@ -160,6 +205,14 @@ def markdown(rows: list[dict]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    if getattr(args, "paper_threshold", False):
+        th = paper_threshold()
+        table = threshold_markdown(th)
+        print(table)
+        with atomic_output_dir(args.out) as tmp:
+            (tmp / "paper_threshold.json").write_text(json.dumps(th, indent=2))
+            (tmp / "paper_threshold.md").write_text(table)
+        return 0
     rows = measure()
     bins = binned(rows)
     table = markdown(rows) + "\n| w theta^2 | rows | paper max / mean | envcap max / mean |\n| --- | --- | --- | --- |\n" + "".join(
@@ -170,7 +223,7 @@ def run(args: argparse.Namespace) -> int:
     radiance = radiance_errors(rng)
     table += "\nUnion of caps, |U - U_true| mean / max (true mean U in the last column):\n\n" + union_markdown(
         [dict(r, truth={"mean": r["mean_U_true"], "max": r["mean_U_true"]}) for r in union],
-        [f"{f}/{rule}" for f in ("paper", "envcap", "exact") for rule in ("overlap", "independent", "sum", "max")] + ["truth"])
+        [f"{f}/{rule}" for f in ("paper", "envcap", "exact") for rule in ("rings", "overlap", "independent", "sum", "max")] + ["truth"])
     table += "\nBlocked and bounced radiance, error mean / max (fraction of the lobe's unblocked light):\n\n" + union_markdown(
         radiance, ["blocked/paper", "blocked/envcap", "bounced paper/paper", "bounced paper/envcap",
                    "bounced facing/paper", "bounced facing/envcap", "blocked_true", "bounced_true"])

@@ -2,9 +2,10 @@
 
 For each sphere count, the full-screen pass of :func:`envcap.benchmarks.dynamic_street_cost.gl_cost`
 (``size^2`` shading points, plastic: one diffuse and one specular lobe) with that many spheres
-around every point, as a multiple of a plain Eq. 3 in the same run, for the paper's form and
-envcap's; the slope gives the cost of one more sphere, the intercept the fixed cost of the terms
-(the K = ENVCAP_SPHERE_CAP slots are visited whatever the count).
+around every point, as a multiple of a plain Eq. 3 in the same run, for the paper's form (overlap
+rule), envcap's form with the overlap rule and envcap's defaults (the rings rule); the slope gives
+the cost of one more sphere, the intercept the fixed cost of the terms (the K = ENVCAP_SPHERE_CAP
+slots are visited whatever the count).
 
     envcap bench dynamic_cost --out DIR [--counts 1 4 8 16] [--size 256]
 """
@@ -18,6 +19,9 @@ import numpy as np
 
 from envcap.benchmarks.dynamic_street_cost import MAX_SPHERES, gl_cost
 from envcap.outputs import atomic_output_dir
+
+MODES = ("paper", "envcap_overlap", "envcap")
+"""The passes of :data:`envcap.benchmarks.dynamic_street_cost.GL_MODES` in the table."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -34,12 +38,12 @@ def run(args: argparse.Namespace) -> int:
     for n in args.counts:
         r = gl_cost(size=args.size, spheres=n, repeats=args.repeats)
         rows.append({"spheres": n, **{k: float(v) for k, v in r["ratio_to_plain"].items()}})
-        print(f"{n:>3} spheres: paper {rows[-1]['paper']:.1f}x, envcap {rows[-1]['envcap']:.1f}x a plain Eq. 3", flush=True)
+        print(f"{n:>3} spheres: " + ", ".join(f"{m} {rows[-1][m]:.1f}x" for m in MODES) + " a plain Eq. 3", flush=True)
     counts = np.array([r["spheres"] for r in rows], float)
     fits = {m: np.polyfit(counts, [r[m] for r in rows], 1) if len(rows) > 1 else np.array([0.0, rows[0][m]])
-            for m in ("paper", "envcap")}
-    lines = ["| spheres | paper form | envcap form |", "| ---: | ---: | ---: |"]
-    lines += [f"| {r['spheres']} | {r['paper']:.1f}x | {r['envcap']:.1f}x |" for r in rows]
+            for m in MODES}
+    lines = ["| spheres | paper form | envcap form, overlap rule | envcap form, rings rule |", "| ---: | ---: | ---: | ---: |"]
+    lines += [f"| {r['spheres']} | " + " | ".join(f"{r[m]:.1f}x" for m in MODES) + " |" for r in rows]
     lines += ["", "Least squares over the counts (multiples of a plain Eq. 3): "
               + "; ".join(f"{m}: {b:.1f} + {a:.2f} per sphere" for m, (a, b) in fits.items())]
     with atomic_output_dir(args.out) as d:

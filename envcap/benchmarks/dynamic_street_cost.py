@@ -8,7 +8,8 @@
   running ``envcap_shade_lafortune`` (``plain``), and the same plus the runtime's
   ``envcap_dynamic_terms`` (``shaders/runtime/envcap_dynamic_spheres.glsl``) over ``S`` spheres
   with the probe lookup as its environment: the paper's form and bounce
-  (``ENVCAP_DYNAMIC_PAPER_FORM``, ``ENVCAP_DYNAMIC_BOUNCE_PAPER``) and envcap's defaults.
+  (``ENVCAP_DYNAMIC_PAPER_FORM``, ``ENVCAP_DYNAMIC_BOUNCE_PAPER``) with the overlap rule, envcap's
+  defaults (the rings rule), and envcap's with the overlap rule (:data:`GL_MODES`).
 
 Times are medians of interleaved passes; the figures that matter are the ratios to the plain Eq. 3
 measured in the same run (llvmpipe: a CPU rasterizer; ratios of fetch-bound GPU passes differ).
@@ -77,6 +78,9 @@ FRAG = """#version 430
 #define ENVCAP_DYNAMIC_PAPER_FORM
 #define ENVCAP_DYNAMIC_BOUNCE_PAPER
 #endif
+#if MODE == 1 || MODE == 3
+#define ENVCAP_DYNAMIC_COMBINE 0
+#endif
 #define ENVCAP_MAX_SPHERES 16
 #define ENVCAP_DYNAMIC_ENVIRONMENT bench_env
 in vec2 uv;
@@ -111,7 +115,9 @@ void main() {
 }
 """
 
-GL_MODES = {"plain": 0, "paper": 1, "envcap": 2}
+GL_MODES = {"plain": 0, "paper": 1, "envcap": 2, "envcap_overlap": 3}
+"""``paper``: the paper's form and bounce, the overlap rule; ``envcap``: envcap's defaults (the rings
+rule); ``envcap_overlap``: envcap's form and bounce with the overlap rule (``ENVCAP_DYNAMIC_COMBINE 0``)."""
 
 
 def gl_cost(size: int = 256, spheres: int = 8, repeats: int = 7, face: int = 32) -> dict[str, Any]:

@@ -85,7 +85,7 @@ def union_errors(rng: np.random.Generator) -> list[dict]:
                                          for a, g, k in zip(th, gam, ok)])
                 for form, f in per.items():
                     for rule in COMBINE_RULES:
-                        U, _ = combine(f, rule, sel.overlap)
+                        U, _ = combine(f, rule, sel.overlap, lobe=(sel.D, sel.t, C, w))
                         errs.setdefault(f"{form}/{rule}", []).append(abs(float(U) - truth))
                 errs.setdefault("truth", []).append(truth)
             rows.append({"scene": name, "w": w, "mean_U_true": float(np.mean(errs.pop("truth"))),

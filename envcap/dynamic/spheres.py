@@ -8,14 +8,16 @@ that combines their overlapping caps (numpy twin of ``shaders/runtime/envcap_dyn
   lobe power ``t``; ties: lower index first), as lobes ``(D, t)`` (:func:`sphere_lobe`).  Fewer
   spheres than ``cap`` (or radius 0) leave slots with index ``-1`` that block nothing.
 * :func:`combine`: the lobe's blocked fraction ``U`` from the per-sphere fractions ``f_k`` and each
-  sphere's share.  ``"overlap"`` (default): inclusion-exclusion to pairs, the lobe's light in the
+  sphere's share.  ``"rings"`` (default): the union merged exactly on a few rings of the lobe
+  (:func:`envcap.dynamic.union.ring_union`; needs the caps and the lobe, ``lobe=(D, t, C, w)``);
+  ``"overlap"``: inclusion-exclusion to pairs, the lobe's light in the
   intersection of two caps taken as ``min(f_j, f_k) o_jk`` with ``o_jk`` the intersection's
   solid angle over the smaller cap's (:func:`cap_overlap`, closed form), ``U = sum f - sum_{j<k}
   min(f_j, f_k) o_jk`` clamped to ``[max f, 1]``: exact for disjoint caps (the sum) and for nested
   ones (the larger); ``"independent"``: ``U = 1 - prod(1 - f_k)``, the caps as independent random
   occluders; ``"sum"``: ``min(1, sum f_k)``; ``"max"``: ``max f_k``.  Each sphere keeps the
-  share ``f_k U / sum f``, so the shares add up to ``U``.  GLSL: ``ENVCAP_DYNAMIC_COMBINE`` 0-3
-  in this order.
+  share ``f_k U / sum f``, so the shares add up to ``U``.  GLSL: ``ENVCAP_DYNAMIC_COMBINE`` 0-4
+  in the order of :data:`COMBINE_RULES` (``"rings"`` = 4, the default).
 """
 
 from __future__ import annotations
@@ -28,12 +30,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.dynamic.lobe_product import MAX_POWER
 from envcap.dynamic.sphere_lobe import sphere_lobe
+from envcap.dynamic.union import UNION_NODES, ring_union
 
 SPHERE_CAP = 8
 """Default number of spheres a shading point considers (GLSL ``ENVCAP_SPHERE_CAP``)."""
 
-CombineRule = Literal["overlap", "independent", "sum", "max"]
+CombineRule = Literal["overlap", "independent", "sum", "max", "rings"]
 """How overlapping caps combine (module docstring).  GLSL ``ENVCAP_DYNAMIC_COMBINE`` = index."""
+DEFAULT_RULE: CombineRule = "rings"
+"""The default rule (GLSL ``ENVCAP_DYNAMIC_COMBINE`` 4)."""
 COMBINE_RULES: tuple[str, ...] = get_args(CombineRule)
 
 
@@ -163,15 +168,24 @@ def check_rule(rule: str) -> None:
         raise ValueError(f"sphere combine rule must be one of {COMBINE_RULES}, got {rule!r}")
 
 
-def combine(f: ArrayLike, rule: CombineRule = "overlap", overlap: ArrayLike | None = None,
-            dtype: Any = np.float64) -> tuple[NDArray, NDArray]:
+def combine(f: ArrayLike, rule: CombineRule = DEFAULT_RULE, overlap: ArrayLike | None = None,
+            dtype: Any = np.float64, *, lobe: tuple[ArrayLike, ArrayLike, ArrayLike, ArrayLike] | None = None,
+            nodes: int = UNION_NODES) -> tuple[NDArray, NDArray]:
     """``(U, share)``: the union's blocked fraction ``U`` ``(...)`` of per-sphere fractions ``f``
     ``(..., K)`` in ``[0, 1]``, and each sphere's share ``(..., K)`` (sums to ``U``).
-    ``overlap``: ``(..., K, K)`` (:attr:`Selection.overlap`), needed by ``"overlap"``."""
+    ``overlap``: ``(..., K, K)`` (:attr:`Selection.overlap`), needed by ``"overlap"``; ``lobe``:
+    ``(D (..., K, 3), t (..., K), C (..., 3), w (...))``, the selected spheres' lobes
+    (:attr:`Selection.D`, :attr:`Selection.t`) and the BRDF lobe's axis and power, needed by
+    ``"rings"`` (with ``nodes`` rings, 1..8)."""
     check_rule(rule)
     f = np.clip(np.asarray(f, dtype=dtype), dtype(0), dtype(1))
     total = np.sum(f, axis=-1, dtype=dtype)
-    if rule == "overlap":
+    if rule == "rings":
+        if lobe is None:
+            raise ValueError("the 'rings' combine rule needs the lobes (D, t, C, w): combine(..., lobe=...)")
+        D, t, C, w = lobe
+        U = ring_union(D, t, C, w, f, nodes, dtype)
+    elif rule == "overlap":
         if overlap is None:
             raise ValueError("the 'overlap' combine rule needs the pairs' overlap (Selection.overlap)")
         o = np.triu(np.asarray(overlap, dtype=dtype), 1)

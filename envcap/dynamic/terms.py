@@ -33,7 +33,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.dynamic.cap_lobe import OcclusionForm, check_form, occlusion
 from envcap.dynamic.lobe_product import MAX_POWER
-from envcap.dynamic.spheres import SPHERE_CAP, CombineRule, SphereBuffer, check_rule, combine, select_spheres
+from envcap.dynamic.spheres import (DEFAULT_RULE, SPHERE_CAP, CombineRule, SphereBuffer, check_rule, combine,
+                                    select_spheres)
 from envcap.runtime.lafortune import Lafortune
 from envcap.runtime.shading import EnvironmentFn, Eq3Form, lafortune_lobe, shade_lafortune
 
@@ -66,7 +67,7 @@ def mirror(d: ArrayLike, up: ArrayLike = UP) -> NDArray[np.float64]:
 
 def dynamic_terms(x: ArrayLike, frame: ArrayLike, v_local: ArrayLike, material: Lafortune, spheres: SphereBuffer,
                   env: EnvironmentFn, *, cap: int = SPHERE_CAP, form: OcclusionForm = "envcap",
-                  rule: CombineRule = "overlap", eq3_form: Eq3Form = "envcap",
+                  rule: CombineRule = DEFAULT_RULE, eq3_form: Eq3Form = "envcap",
                   bounce: BounceRule = "facing") -> DynamicTerms:
     """Blocked and bounced light of ``spheres`` at shading points (module docstring).
 
@@ -75,7 +76,8 @@ def dynamic_terms(x: ArrayLike, frame: ArrayLike, v_local: ArrayLike, material: 
     directions in that frame; ``env(dirs (..., K, 3), w (..., K)) -> (..., K, 3)``: the
     cos^w-convolved environment (the same callback as Eq. 3; ``w`` up to 1e30 means "unblurred").
     ``cap``: spheres per point; ``form``: per-sphere occlusion (``"envcap"`` or ``"paper"`` Eq.
-    4-7); ``rule``: overlap rule; ``eq3_form``: the lobe weights' Eq. 3 form; ``bounce``:
+    4-7); ``rule``: how overlapping caps combine (:data:`envcap.dynamic.spheres.CombineRule`);
+    ``eq3_form``: the lobe weights' Eq. 3 form; ``bounce``:
     :data:`BounceRule`.
     """
     check_form(form)
@@ -99,7 +101,7 @@ def dynamic_terms(x: ArrayLike, frame: ArrayLike, v_local: ArrayLike, material: 
     for axis, w, weight in lobes:
         occ = occlusion(sel.D, axis[..., None, :], sel.t, w[..., None], form=form)
         f = np.where(live, occ.integral * (1 + w[..., None]) / (2 * np.pi), 0.0)
-        U, share = combine(f, rule, sel.overlap)
+        U, share = combine(f, rule, sel.overlap, lobe=(sel.D, sel.t, axis, w))
         unions.append(U)
         power = np.minimum(w[..., None] + sel.t, MAX_POWER)
         Lb = env(occ.axis, power)

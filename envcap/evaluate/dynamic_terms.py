@@ -9,7 +9,8 @@ paper's horizontal mirror of ``M`` or ``-M``, the sphere's face toward the point
 static environment at the shading point (the paper: one environment for everything), ``"sky"``
 the sky's upper hemisphere, unoccluded (how the capture's ``sky_light`` lights every surface, so
 the truth's spheres).  Overlapping caps combine by the runtime's default rule
-(:func:`envcap.dynamic.spheres.combine`, ``"overlap"``).
+(:func:`envcap.dynamic.spheres.combine`, ``"rings"`` since issue 21; the tables of
+``docs/dynamic.md`` before it were measured with ``"overlap"``).
 
 With ``light="sky"`` the terms are computed twice (:func:`model_terms`): ``blocked`` with the
 static environment, ``bounced`` with the light; each is exactly what the runtime computes with

@@ -7,7 +7,8 @@
 //
 // Defines (before the include): ENVCAP_MAX_SPHERES (uniform array size, default 64),
 // ENVCAP_SPHERE_CAP (spheres per point, default 8), ENVCAP_DYNAMIC_COMBINE (overlapping caps:
-// 0 overlap, pairwise inclusion-exclusion with the caps' intersection (default); 1 independent,
+// 4 rings, the union merged on ENVCAP_UNION_NODES rings of each lobe (default; nodes default 8);
+// 0 overlap, pairwise inclusion-exclusion with the caps' solid-angle intersection; 1 independent,
 // 1 - prod(1 - f); 2 sum; 3 max), ENVCAP_DYNAMIC_PAPER_FORM (Eq. 4-7 instead of
 // envcap's cap form), ENVCAP_DYNAMIC_ENVIRONMENT (the name of a function vec3 NAME(vec3 dir,
 // float w): the cos^w-convolved environment along the world direction dir; declared here, defined
@@ -24,7 +25,10 @@
 #define ENVCAP_SPHERE_CAP 8
 #endif
 #ifndef ENVCAP_DYNAMIC_COMBINE
-#define ENVCAP_DYNAMIC_COMBINE 0
+#define ENVCAP_DYNAMIC_COMBINE 4
+#endif
+#ifndef ENVCAP_UNION_NODES
+#define ENVCAP_UNION_NODES 8
 #endif
 #ifndef ENVCAP_MAX_LOBES
 #define ENVCAP_MAX_LOBES 3
@@ -119,6 +123,165 @@ EnvcapSphereSet envcap_select_spheres(vec3 x, vec3 normal)
     return s;
 }
 
+#if ENVCAP_DYNAMIC_COMBINE == 4
+// Ring positions and weights of the union (as ENVCAP_CAP_U / ENVCAP_CAP_W, ENVCAP_UNION_NODES of them).
+#if ENVCAP_UNION_NODES == 1
+const float ENVCAP_UNION_U[1] = float[](0.5);
+const float ENVCAP_UNION_W[1] = float[](1.0);
+#elif ENVCAP_UNION_NODES == 2
+const float ENVCAP_UNION_U[2] = float[](0.106201429, 0.893798571);
+const float ENVCAP_UNION_W[2] = float[](0.5, 0.5);
+#elif ENVCAP_UNION_NODES == 3
+const float ENVCAP_UNION_U[3] = float[](0.0310140675, 0.5, 0.968985933);
+const float ENVCAP_UNION_W[3] = float[](0.151176393, 0.697647215, 0.151176393);
+#elif ENVCAP_UNION_NODES == 4
+const float ENVCAP_UNION_U[4] = float[](0.011847713, 0.245492107, 0.754507893, 0.988152287);
+const float ENVCAP_UNION_W[4] = float[](0.0591221965, 0.440877803, 0.440877803, 0.0591221965);
+#elif ENVCAP_UNION_NODES == 5
+const float ENVCAP_UNION_U[5] = float[](0.0054198327, 0.125740578, 0.5, 0.874259422, 0.994580167);
+const float ENVCAP_UNION_W[5] = float[](0.0273241736, 0.249273694, 0.446804264, 0.249273694, 0.0273241736);
+#elif ENVCAP_UNION_NODES == 6
+const float ENVCAP_UNION_U[6] = float[](0.00281042655, 0.0691462504, 0.316946488, 0.683053512, 0.93085375, 0.997189573);
+const float ENVCAP_UNION_W[6] = float[](0.0142467012, 0.14376898, 0.341984318, 0.341984318, 0.14376898, 0.0142467012);
+#elif ENVCAP_UNION_NODES == 7
+const float ENVCAP_UNION_U[7] = float[](0.0015967944, 0.0406464087, 0.202405802, 0.5, 0.797594198, 0.959353591, 0.998403206);
+const float ENVCAP_UNION_W[7] = float[](0.0081211346, 0.0867603224, 0.240986355, 0.328264375, 0.240986355, 0.0867603224, 0.0081211346);
+#elif ENVCAP_UNION_NODES == 8
+const float ENVCAP_UNION_U[8] = float[](0.000972393075, 0.0252873079, 0.132555031, 0.357916038, 0.642083962, 0.867444969, 0.974712692, 0.999027607);
+const float ENVCAP_UNION_W[8] = float[](0.00495601381, 0.0548412357, 0.167094698, 0.273108052, 0.273108052, 0.167094698, 0.0548412357, 0.00495601381);
+#else
+#error "ENVCAP_UNION_NODES must be 1..8"
+#endif
+// A cap whose partial rings lie more than this share (in z) below L keeps its node value.
+const float ENVCAP_UNION_FADE = 0.1;
+
+// x in (-2 pi, 2 pi) wrapped to (-pi, pi].
+float envcap_wrap_pi(float x)
+{
+    return x > ENVCAP_PI ? x - 2.0 * ENVCAP_PI : (x <= -ENVCAP_PI ? x + 2.0 * ENVCAP_PI : x);
+}
+
+// Covered fraction of a circle by the arcs of half-widths phi[k] (rad; 0: none) centered at
+// azimuths psi[k]: the uncovered length is the sum, over arc ends strictly inside no other arc, of
+// the gap to the next arc start; one difference per pair decides both ends (ties: the lower index
+// keeps its end), so near-identical arcs never hide each other's gap.  Numpy twin:
+// envcap.dynamic.union.arc_union.
+float envcap_arc_union(float phi[ENVCAP_SPHERE_CAP], float psi[ENVCAP_SPHERE_CAP])
+{
+    const float two_pi = 2.0 * ENVCAP_PI;
+    bool covered[ENVCAP_SPHERE_CAP];
+    float gap[ENVCAP_SPHERE_CAP];
+    bool any_ = false, full = false;
+    for (int k = 0; k < ENVCAP_SPHERE_CAP; ++k) {
+        covered[k] = false;
+        gap[k] = two_pi - 2.0 * phi[k];
+        any_ = any_ || phi[k] > 0.0;
+        full = full || phi[k] >= ENVCAP_PI;
+    }
+    if (!any_) return 0.0;
+    if (full) return 1.0;
+    for (int i = 0; i < ENVCAP_SPHERE_CAP; ++i) {
+        if (!(phi[i] > 0.0)) continue;
+        for (int j = i + 1; j < ENVCAP_SPHERE_CAP; ++j) {
+            if (!(phi[j] > 0.0)) continue;
+            float delta = envcap_wrap_pi(psi[i] - psi[j]) + (phi[i] - phi[j]);   // end_i - end_j
+            float dn = delta > 0.0 ? delta - two_pi : delta;                     // i's end behind j's
+            float v = -dn - 2.0 * phi[j];                                        // j's start ahead of i's end
+            if (v < 0.0 && dn < 0.0) covered[i] = true;
+            else gap[i] = min(gap[i], v < 0.0 ? v + two_pi : v);
+            float dm = -delta > 0.0 ? -delta - two_pi : -delta;                 // j's end behind i's
+            float vm = -dm - 2.0 * phi[i];
+            if ((vm < 0.0 && dm < 0.0) || dm == 0.0) covered[j] = true;
+            else gap[j] = min(gap[j], vm < 0.0 ? vm + two_pi : vm);
+        }
+    }
+    float uncovered = 0.0;
+    for (int k = 0; k < ENVCAP_SPHERE_CAP; ++k)
+        if (phi[k] > 0.0 && !covered[k]) uncovered += gap[k];
+    return clamp(1.0 - uncovered / two_pi, 0.0, 1.0);
+}
+
+// The fraction of the BRDF lobe (axis c, power w) blocked by the union of the selected caps, on
+// the lobe's rings (docs/dynamic.md, "The union on the lobe's rings"; numpy twin
+// envcap.dynamic.union.ring_union): rings below A (inside a cap) whole, the others from L to B on
+// ENVCAP_UNION_NODES rings with the arcs merged exactly, rescaled by the caps' exact light over
+// their node values.  occ[k].w: each sphere's blocked fraction f (0: left out).
+float envcap_ring_union(EnvcapSphereSet s, vec3 c, float w, vec4 occ[ENVCAP_SPHERE_CAP])
+{
+    const float h = 0.5 * ENVCAP_PI;
+    w = envcap_clean_power(w);
+    float lc_ = length(c);
+    c = lc_ > 0.0 ? c / lc_ : vec3(0.0, 0.0, 1.0);
+    vec3 e1 = envcap_any_perpendicular(c);
+    vec3 e2 = cross(c, e1);
+    float theta[ENVCAP_SPHERE_CAP], gamma[ENVCAP_SPHERE_CAP], psi[ENVCAP_SPHERE_CAP], f[ENVCAP_SPHERE_CAP];
+    vec4 half_[ENVCAP_SPHERE_CAP];     // sin, cos of (theta - gamma) / 2 and of (theta + gamma) / 2
+    float sg[ENVCAP_SPHERE_CAP];
+    float A = 0.0, L = h, B = 0.0, fmax = 0.0, fsum = 0.0;
+    for (int k = 0; k < ENVCAP_SPHERE_CAP; ++k) {
+        f[k] = clamp(occ[k].w, 0.0, 1.0);
+        vec3 D = s.lobe[k].xyz;
+        float ld = length(D);
+        vec3 d = ld > 0.0 ? D / ld : c;
+        gamma[k] = atan(length(cross(d, c)), dot(d, c));
+        theta[k] = envcap_cap_half_angle(s.lobe[k].w);
+        float px = dot(d, e1), py = dot(d, e2);
+        psi[k] = px != 0.0 || py != 0.0 ? atan(py, px) : 0.0;
+        float hm = 0.5 * (theta[k] - gamma[k]), hp = 0.5 * (theta[k] + gamma[k]);
+        half_[k] = vec4(sin(hm), cos(hm), sin(hp), cos(hp));
+        sg[k] = sin(gamma[k]);
+        fmax = max(fmax, f[k]);
+        fsum += f[k];
+        if (!(f[k] > 0.0)) continue;
+        A = max(A, min(max(theta[k] - gamma[k], 0.0), h));
+        L = min(L, min(max(gamma[k] - theta[k], 0.0), h));
+        B = max(B, min(gamma[k] + theta[k], h));
+    }
+    L = max(A, L);
+    float p1 = w + 1.0;
+    float GA = envcap_cos_power(A, p1), GL = envcap_cos_power(L, p1), GB = envcap_cos_power(B, p1);
+    float span = B > L ? GL - GB : 0.0;
+    float Un = 0.0;
+    float Fn[ENVCAP_SPHERE_CAP];
+    for (int k = 0; k < ENVCAP_SPHERE_CAP; ++k) Fn[k] = 0.0;
+    for (int n = 0; n < ENVCAP_UNION_NODES; ++n) {
+        float z = GL + (GB - GL) * ENVCAP_UNION_U[n];
+        float lam = z > 0.0 ? log(z) / p1 : -1.0e30;                  // ln cos alpha
+        float m = lam > ENVCAP_EXPM1_SERIES_ABOVE                       // 1 - cos alpha
+            ? -lam * (1.0 + lam * (0.5 + lam * (1.0 / 6.0 + lam * (1.0 / 24.0))))
+            : 1.0 - exp(lam);
+        float s2 = sqrt(max(0.5 * m, 0.0));                             // sin(alpha / 2)
+        float c2 = sqrt(max(1.0 - 0.5 * m, 0.0));
+        float phi[ENVCAP_SPHERE_CAP];
+        for (int k = 0; k < ENVCAP_SPHERE_CAP; ++k) {
+            vec4 hk = half_[k];
+            float num = 2.0 * (hk.x * c2 + hk.y * s2) * (hk.z * c2 - hk.w * s2);
+            float den = 2.0 * s2 * c2 * sg[k];
+            float q = den > 0.0 ? num / den : (num > 0.0 ? 2.0 : 0.0);
+            q = q > 0.0 ? min(q, 2.0) : 0.0;                                // 1 - cos phi; NaN -> 0
+            phi[k] = f[k] > 0.0 ? 2.0 * atan(sqrt(q), sqrt(2.0 - q)) : 0.0;
+            Fn[k] += span * ENVCAP_UNION_W[n] * phi[k] * (1.0 / ENVCAP_PI);
+        }
+        Un += span * ENVCAP_UNION_W[n] * envcap_arc_union(phi, psi);
+    }
+    float S = 0.0, Fsum = 0.0;
+    for (int k = 0; k < ENVCAP_SPHERE_CAP; ++k) {
+        if (!(f[k] > 0.0)) continue;
+        float tk = theta[k], gk = gamma[k];
+        float a = min(abs(tk - gk), h);
+        float b = min(min(gk + tk, 2.0 * ENVCAP_PI - gk - tk), h);
+        float Ga = envcap_cos_power(a, p1), Gb = envcap_cos_power(b, p1);
+        float rho = Ga > Gb ? clamp((Ga - GL) / (Ga - Gb), 0.0, 1.0) : (a < L ? 1.0 : 0.0);
+        float omega = clamp(1.0 - rho / ENVCAP_UNION_FADE, 0.0, 1.0);
+        float F = f[k] - (tk > gk ? 1.0 - GL : 0.0);                    // the cap's light on rings past L
+        S += Fn[k] + omega * (F - Fn[k]);
+        Fsum += Fn[k];
+    }
+    float part = Fsum > 0.0 ? Un * (S / Fsum) : S;
+    return clamp(1.0 - GA + max(part, 0.0), fmax, min(fsum, 1.0));
+}
+#endif
+
 // For one BRDF lobe (unit axis c, power w): per selected sphere vec4(M, share), the share of the
 // lobe's light it blocks after the overlap rule (shares add up to the union's fraction U).
 // Returns U.
@@ -144,8 +307,10 @@ float envcap_sphere_shares(EnvcapSphereSet s, vec3 c, float w, out vec4 occ[ENVC
     float U = 1.0 - keep;
 #elif ENVCAP_DYNAMIC_COMBINE == 2
     float U = min(total, 1.0);
-#else
+#elif ENVCAP_DYNAMIC_COMBINE == 3
     float U = most;
+#else
+    float U = envcap_ring_union(s, c, w, occ);
 #endif
     float scale = total > 0.0 ? U / total : 0.0;
     for (int k = 0; k < ENVCAP_SPHERE_CAP; ++k) occ[k].w *= scale;

@@ -112,7 +112,8 @@ def test_cap_overlap_against_a_direction_grid():
 
 def test_two_identical_and_two_disjoint_spheres_against_the_union_reference():
     """The union reference tells the rules apart: coincident spheres (max exact) and far-apart
-    ones (sum exact); the overlap rule is exact in both, the independent one (2f - f^2) in neither."""
+    ones (sum exact); the overlap and rings rules are exact in both, the independent one (2f - f^2)
+    in neither."""
     C = np.array([0.0, 0.0, 1.0])
     th = 0.3
     for D, best in [(np.array([[0.3, 0, 1], [0.3, 0, 1]]), "max"), (np.array([[0.5, 0, 1], [-0.5, 0, 1]]), "sum")]:
@@ -122,8 +123,10 @@ def test_two_identical_and_two_disjoint_spheres_against_the_union_reference():
         f = occlusion(D, C, t, 10.0).integral * 11 / (2 * math.pi)
         beta = math.acos(np.clip(D[0] @ D[1], -1, 1))
         o = float(cap_overlap(th, th, beta))
-        errs = {r: abs(float(combine(f[None], r, [[[0, o], [o, 0]]])[0][0]) - truth) for r in COMBINE_RULES}
-        assert errs[best] < 2e-3 and errs["overlap"] < 2e-3 and errs[best] < errs["independent"] / 4
+        lobe = (D[None], np.full((1, 2), t), C, 10.0)
+        errs = {r: abs(float(combine(f[None], r, [[[0, o], [o, 0]]], lobe=lobe)[0][0]) - truth) for r in COMBINE_RULES}
+        assert errs[best] < 2e-3 and errs["overlap"] < 2e-3 and errs["rings"] < 2e-3
+        assert errs[best] < errs["independent"] / 4
 
 
 def test_spheres_below_the_horizon_do_not_take_the_slots(gl_ctx):
@@ -156,7 +159,7 @@ u[i] = vec4(U, s.lobe[0].w, occ[0].xy);"""
                               "envcap_sphere_count": len(sb)})
 
 
-@pytest.mark.parametrize("form,rule,defines", [("envcap", "overlap", {}),
+@pytest.mark.parametrize("form,rule,defines", [("envcap", "rings", {}), ("envcap", "overlap", {"ENVCAP_DYNAMIC_COMBINE": 0}),
                                                ("paper", "independent", {"ENVCAP_DYNAMIC_PAPER_FORM": 1, "ENVCAP_DYNAMIC_COMBINE": 1})])
 def test_glsl_selection_and_shares_match_the_twin(gl_ctx, form, rule, defines):
     rng = np.random.default_rng(11)
@@ -174,7 +177,7 @@ def test_glsl_selection_and_shares_match_the_twin(gl_ctx, form, rule, defines):
     np.testing.assert_array_equal(got["idx"][clear].astype(int), sel.index[clear])
     occ = occlusion(sel.D, C[:, None], sel.t, w[:, None], form=form)
     f = np.where(sel.index >= 0, occ.integral * (1 + w[:, None]) / (2 * np.pi), 0)
-    U, share = combine(f, rule, sel.overlap)
+    U, share = combine(f, rule, sel.overlap, lobe=(sel.D, sel.t, C, w))
     # measured 1.7e-5 (w up to 300: slopes up to ~sqrt(w) times llvmpipe's 3.5e-6 rad atan)
     assert np.abs(got["u"][clear, 0] - U[clear]).max() < 1e-4
     assert np.abs(got["sh"][clear] - share[clear]).max() < 1e-4
