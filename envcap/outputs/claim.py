@@ -60,23 +60,30 @@ class OutputClaim(os.PathLike):
         check_not_inputs(self.path, inputs)
 
 
-def _make_parents(folder: Path) -> list[Path]:
+def make_parents(folder: Path) -> list[Path]:
     """Create ``folder`` and the missing folders above it; return those created, deepest first."""
     missing = []
     while not folder.exists():
         missing.append(folder)
         folder = folder.parent
-    created = []
+    created: list[Path] = []
     for d in reversed(missing):
         try:
             d.mkdir()
         except FileExistsError:
-            continue
+            if d.is_dir():
+                continue
+            remove_if_empty(created[::-1])
+            raise OutputRefused(f"cannot create folder {d}: a file of that name is in the way") from None
+        except OSError as exc:
+            remove_if_empty(created[::-1])
+            raise OutputRefused(f"cannot create folder {d}: {(exc.strerror or str(exc)).lower()}") from None
         created.append(d)
     return created[::-1]
 
 
-def _remove_if_empty(folders: list[Path]) -> None:
+def remove_if_empty(folders: list[Path]) -> None:
+    """Remove the folders :func:`make_parents` created (deepest first) while they are empty."""
     for d in folders:
         try:
             d.rmdir()
@@ -93,14 +100,14 @@ def claim_output_dir(path: str | os.PathLike[str], *, kind: str = "output",
     another run holds the output."""
     final = resolve_output(path)
     check_output_target(final, inputs)
-    created = _make_parents(final.parent)
+    created = make_parents(final.parent)
     try:
         lock = OutputLock(final)
     except PermissionError as exc:
-        _remove_if_empty(created)
+        remove_if_empty(created)
         raise OutputRefused(f"cannot write output directory {final}: {exc.strerror} in {final.parent}") from None
     except BaseException:
-        _remove_if_empty(created)
+        remove_if_empty(created)
         raise
     try:
         recover(final)
@@ -109,6 +116,6 @@ def claim_output_dir(path: str | os.PathLike[str], *, kind: str = "output",
     except BaseException:
         with deferred_signals():
             lock.release()
-            _remove_if_empty(created)
+            remove_if_empty(created)
         raise
     lock.release()
