@@ -74,6 +74,9 @@ def run(args: argparse.Namespace) -> int:
     require_file(source, "input avatar", f"input avatar {source} does not exist")
     check_options(args.k, args.reduce, args.exclude_weight)
     counts = read_counts(source, args.animation)
+    if counts is not None and counts.animations and not 0 <= args.animation < counts.animations:
+        raise ValueError(f"animation {args.animation} (--animation) does not exist (the avatar has "
+                         f"{counts.animations}, numbered from 0)")
     if counts is not None:   # else the loader says what is wrong with the file
         estimate = estimate_avatar(counts)
         check_avatar_cost(estimate, source)

@@ -39,6 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from envcap.core.budget import check_bytes
+from envcap.core.checks import format_number
 from envcap.dynamic.gltf_skin import SkinnedAvatar, joint_matrices, skin
 from envcap.dynamic.proxy_spheres import ProxySpheres, joint_weight_matrix, pose_spheres
 
@@ -108,11 +109,11 @@ def own_joint_mask(avatar: SkinnedAvatar, exclude_weight: float = 0.0, rows: sli
 def check_options(k: int, reduce: str, exclude_weight: float) -> None:
     """Raise ``ValueError`` naming the bad one of :func:`select_blockers`'s options."""
     if not isinstance(k, (int, np.integer)) or not 1 <= k <= MAX_BLOCKERS:
-        raise ValueError(f"k must be an integer from 1 to {MAX_BLOCKERS} (one VEC4 attribute), got {k!r}")
+        raise ValueError(f"k (--k) must be an integer from 1 to {MAX_BLOCKERS} (one VEC4 attribute), got {k!r}")
     if reduce not in REDUCTIONS:
-        raise ValueError(f"reduce must be one of {', '.join(REDUCTIONS)}, got {reduce!r}")
+        raise ValueError(f"reduce (--reduce) must be one of {', '.join(REDUCTIONS)}, got {reduce!r}")
     if not np.isfinite(exclude_weight) or not 0 <= exclude_weight < 1:
-        raise ValueError(f"exclude_weight must be in [0, 1), got {exclude_weight!r}")
+        raise ValueError(f"exclude_weight (--exclude-weight) must be in [0, 1), got {format_number(exclude_weight)}")
 
 
 def block_rows(joint_count: int, pairs: int = BLOCK_PAIRS) -> int:
@@ -157,7 +158,8 @@ def select_blockers(avatar: SkinnedAvatar, spheres: ProxySpheres, k: int = MAX_B
     if animation is not None and not avatar.animations:
         animation = None
     if animation is not None and not 0 <= animation < len(avatar.animations):
-        raise ValueError(f"animation {animation} does not exist (the avatar has {len(avatar.animations)})")
+        raise ValueError(f"animation {animation} (--animation) does not exist (the avatar has {len(avatar.animations)}, "
+                         f"numbered from 0)")
     times = avatar.animations[animation].keyframes if animation is not None else np.zeros(1)
     count, joints = len(avatar.positions), avatar.joint_count
     poses = [(joint_matrices(avatar, animation, float(t)), *pose_spheres(spheres, avatar, animation, float(t)))

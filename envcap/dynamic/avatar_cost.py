@@ -46,13 +46,14 @@ class AvatarCounts:
     """What an avatar file holds, read from its JSON: ``vertices`` of the skinned mesh,
     ``joints`` of its skin, ``keyframes`` of the chosen animation (its longest sampler: the union
     of the samplers' times when they share them, as exporters write them; 1 without animation),
-    ``objects`` (accessors, nodes, samplers, channels), ``file_bytes``."""
+    ``objects`` (accessors, nodes, samplers, channels), ``file_bytes``, ``animations`` in the file."""
 
     vertices: int
     joints: int
     keyframes: int
     objects: int
     file_bytes: int
+    animations: int = 0
 
 
 @dataclass(frozen=True)
@@ -113,7 +114,7 @@ def read_counts(path: str | os.PathLike[str], animation: int | None = 0) -> Avat
                    + sum(len(a.get("samplers", [])) + len(a.get("channels", [])) for a in anims))
     except (OSError, ValueError, KeyError, IndexError, TypeError, AttributeError, StopIteration, struct.error):
         return None
-    return AvatarCounts(int(vertices), int(joints), int(keyframes), int(objects), int(size))
+    return AvatarCounts(int(vertices), int(joints), int(keyframes), int(objects), int(size), len(anims))
 
 
 def estimate_avatar(counts: AvatarCounts) -> AvatarEstimate:

@@ -97,7 +97,7 @@ def check_settings(scene: Any, probe_set: ProbeSet, methods: Sequence[str], lobe
         raise ValueError("sun_variants must hold True and/or False")
     n = int(resolution) if resolution is not None else min(int(probe_set.resolution), 64)
     if n < 4:
-        raise ValueError(f"evaluation resolution must be >= 4 texels per face, got {n}")
+        raise ValueError(f"evaluation resolution (--resolution) must be >= 4 texels per face, got {n}")
     # The manifest does not record the bake's prefilter quality: the truth is filtered at the default one.
     return EvaluationSettings(tuple(names), tuple(lps), suns, False if False in suns else True, n, "default")
 

@@ -17,10 +17,10 @@ from pathlib import Path
 
 from envcap.outputs.claim import OutputClaim, claim_output_dir, make_parents, remove_if_empty
 from envcap.outputs.deferred_signals import deferred_signals
-from envcap.outputs.guard import check_replaceable
+from envcap.outputs.guard import check_replaceable, resolve_output
 from envcap.outputs.lock import OutputLock
-from envcap.outputs.marker import is_replaceable, write_marker
-from envcap.outputs.swap import install, make_temp_dir, make_temp_file, move_aside, recover_file, remove_path
+from envcap.outputs.marker import is_replaceable, read_marker, write_marker
+from envcap.outputs.swap import install, make_temp_dir, make_temp_file, move_aside, recover, recover_file, remove_path
 
 
 class DiskFull(OSError):
@@ -160,3 +160,27 @@ def atomic_output_file(path: str | os.PathLike[str], *, keep_existing: bool = Fa
         raise
     if aside is not None:
         report_moved_aside(final, aside)
+
+
+def retire_output_dir(path: str | os.PathLike[str]) -> bool:
+    """Remove the output directory ``path`` when envcap wrote it (it carries the marker of
+    :mod:`envcap.outputs.marker`) and a run has made it stale (``envcap demo --no-eval``: an
+    evaluation of earlier probes).  Under the output's lock: renamed to a temporary name first
+    (a kill leaves only that, which the next run on the output removes), then removed.  Returns
+    False, touching nothing, when there is no such directory or envcap did not write it."""
+    final = resolve_output(path)
+    if not final.is_dir() or final.is_symlink() or read_marker(final) is None:
+        return False
+    lock = OutputLock(final)
+    try:
+        recover(final)
+        if read_marker(final) is None:
+            return False
+        with deferred_signals():
+            tmp = make_temp_dir(final)
+            os.rmdir(tmp)
+            os.rename(final, tmp)
+        remove_path(tmp)
+        return True
+    finally:
+        lock.release()
