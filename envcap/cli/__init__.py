@@ -62,9 +62,9 @@ def error_text(exc: BaseException) -> str:
 
 @contextlib.contextmanager
 def held_warnings() -> Iterator[list[warnings.WarningMessage]]:
-    """Record the Python warnings raised inside the block instead of printing them (see the module docstring)."""
+    """Record the Python warnings raised inside the block instead of printing them (see the module
+    docstring); the filters stay as they are, so what would have been printed is what is held."""
     with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
         yield caught
 
 
