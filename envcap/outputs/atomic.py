@@ -168,8 +168,10 @@ def retire_output_dir(path: str | os.PathLike[str]) -> bool:
     evaluation of earlier probes).  Under the output's lock: renamed to a temporary name first
     (a kill leaves only that, which the next run on the output removes), then removed.  Returns
     False, touching nothing, when there is no such directory or envcap did not write it."""
+    if Path(path).is_symlink():      # a link the user made: neither it nor where it leads is removed
+        return False
     final = resolve_output(path)
-    if not final.is_dir() or final.is_symlink() or read_marker(final) is None:
+    if not final.is_dir() or read_marker(final) is None:
         return False
     lock = OutputLock(final)
     try:

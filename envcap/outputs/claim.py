@@ -21,6 +21,7 @@ claiming the path again.  The lock is released when the block ends.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -61,7 +62,9 @@ class OutputClaim(os.PathLike):
 
 
 def make_parents(folder: Path) -> list[Path]:
-    """Create ``folder`` and the missing folders above it; return those created, deepest first."""
+    """Create ``folder`` and the missing folders above it; return those created, deepest first.
+    A folder that cannot be created is :class:`~envcap.outputs.guard.OutputRefused` naming it and
+    why (a file in the way, no space, ...), the folders made so far removed again."""
     missing = []
     while not folder.exists():
         missing.append(folder)
@@ -77,7 +80,10 @@ def make_parents(folder: Path) -> list[Path]:
             raise OutputRefused(f"cannot create folder {d}: a file of that name is in the way") from None
         except OSError as exc:
             remove_if_empty(created[::-1])
-            raise OutputRefused(f"cannot create folder {d}: {(exc.strerror or str(exc)).lower()}") from None
+            why = (exc.strerror or str(exc)).lower()
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+                why = "no space left on the device (the disk is full)"
+            raise OutputRefused(f"cannot create folder {d}: {why}") from None
         created.append(d)
     return created[::-1]
 
