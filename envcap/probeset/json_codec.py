@@ -29,7 +29,6 @@ import os
 import re
 import types
 import typing
-from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
