@@ -12,9 +12,10 @@ or ``ENVCAP_MAX_MEMORY``); the time is printed first when it is long.
 The model (``estimate_avatar``) was fitted to ``envcap avatar`` on the many-bone avatars of
 :func:`envcap.dynamic.avatar_synthetic.many_bone_gltf` (50 to 5,000 joints, 92 vertices each,
 5 keyframes) and the ``walker`` (2 CPU cores shared with other jobs): peak resident memory 72 MB
-(walker), 91 MB (200 joints), 122 MB (1,000), 270 MB (5,000, decoded); per vertex-joint-keyframe
-45-140 ns, per keyframe-joint of the one-sphere LOD 2.6-3.1 ms, per glTF object (accessor,
-node, sampler, channel) ~1 ms to decode.  The estimate stays above those.
+(walker), 91 MB (200 joints), 139 MiB (1,000 joints, 33 s in all), 353 MiB (5,000 joints, 7.8
+min in all); per vertex-joint-keyframe 40-140 ns, per keyframe-joint of the one-sphere LOD
+2.6-3.1 ms, per glTF object (accessor, node, sampler, channel) ~1 ms to decode.  The estimate
+stays above those (1,000 joints: 240 MiB, 98 s; 5,000: 680 MiB, 31 min).
 """
 
 from __future__ import annotations
