@@ -106,7 +106,7 @@ def blocker_table() -> None:
     """How much of a vertex's blocking (sum over every other bone of its mean F) k bones keep."""
     av = avatar_from_gltf(walker_gltf())
     sp = fit_proxy_spheres(av)
-    full = select_blockers(av, sp, k=1)
+    full = select_blockers(av, sp, k=1, keep_frames=True)
     total = full.per_frame.sum(axis=2).mean(axis=0)
     some = total > 0
     inside = (full.per_frame >= 1).any(axis=(0, 2)).mean()

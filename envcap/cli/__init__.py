@@ -5,15 +5,26 @@ Errors in the input (bad files, bad arguments) print one line ``envcap: error: .
 with status 2; nothing half-written is left behind (outputs are written atomically, see
 :mod:`envcap.outputs`).  Ctrl-C exits with status 130 and SIGTERM with 143, after the same
 clean-up, with one line ``envcap: interrupted`` / ``envcap: terminated``.
+
+The error line is the exception's text (:func:`error_text`): an ``OSError`` that carries only the
+system's wording (``[Errno 2] No such file or directory: 'x'``) becomes ``x: no such file or
+directory``, a full disk says so.  Python warnings that libraries (numpy, trimesh, ...) raise
+during a command are held back (:func:`held_warnings`): a failed command prints only its error
+line; a successful one prints each distinct warning once at the end, as one line
+``envcap: note: a library warned: ...``.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
 import importlib
 import os
 import pkgutil
 import sys
+import warnings
+from collections.abc import Iterator
 
 from envcap import __version__
 from envcap.cli.termination import EXIT_INTERRUPTED, EXIT_TERMINATED, Terminated, sigterm_raises
@@ -35,6 +46,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def error_text(exc: BaseException) -> str:
+    """The one line that ``envcap: error:`` prints for a user error ``exc``."""
+    if isinstance(exc, KeyError):
+        return f"missing key {exc}"
+    text = str(exc)
+    if isinstance(exc, OSError) and exc.errno is not None and exc.strerror and text.startswith("[Errno"):
+        where = " -> ".join(str(f) for f in (exc.filename, exc.filename2) if f)
+        reason = exc.strerror[:1].lower() + exc.strerror[1:]
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            reason += " (the disk is full)" if exc.errno == errno.ENOSPC else " (the disk quota is used up)"
+        text = f"{where}: {reason}" if where else reason
+    return " ".join(text.split()) or type(exc).__name__
+
+
+@contextlib.contextmanager
+def held_warnings() -> Iterator[list[warnings.WarningMessage]]:
+    """Record the Python warnings raised inside the block instead of printing them (see the module
+    docstring); the filters stay as they are, so what would have been printed is what is held."""
+    with warnings.catch_warnings(record=True) as caught:
+        yield caught
+
+
+def print_held_warnings(caught: list[warnings.WarningMessage]) -> None:
+    """Each distinct held warning once, as one line on stderr."""
+    for category, message in dict.fromkeys((w.category.__name__, " ".join(str(w.message).split())) for w in caught):
+        print(f"envcap: note: a library warned: {category}: {message}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     parser = build_parser()
@@ -43,8 +82,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        with sigterm_raises():
-            return int(args.func(args) or 0)
+        with sigterm_raises(), held_warnings() as caught:
+            code = int(args.func(args) or 0)
+        print_held_warnings(caught)
+        return code
     except KeyboardInterrupt:
         print("envcap: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -52,8 +93,7 @@ def main(argv: list[str] | None = None) -> int:
         print("envcap: terminated", file=sys.stderr)
         return EXIT_TERMINATED
     except USER_ERRORS as exc:
-        msg = str(exc) if not isinstance(exc, KeyError) else f"missing key {exc}"
-        print(f"envcap: error: {msg}", file=sys.stderr)
+        print(f"envcap: error: {error_text(exc)}", file=sys.stderr)
         return 2
 
 

@@ -25,12 +25,14 @@ less CPU than ``"default"`` and within 0.5 % of the exact reference at every lev
 The library's :func:`envcap.probeset.bake.bake_probe_set` keeps ``"default"``."""
 
 
-def add_bake_arguments(p: argparse.ArgumentParser, resolution: int, *, files: bool = False) -> None:
+def add_bake_arguments(p: argparse.ArgumentParser, resolution: int, *, files: bool = False, spacing: float = 5.0) -> None:
     """Options shared by ``capture`` and ``demo``; ``files``: whether the per-probe EXRs and the
     previews are written unless ``--no-exr`` / ``--no-previews`` (``demo``) or only with
-    ``--exr`` / ``--previews`` (``capture``: the probe set needs neither)."""
+    ``--exr`` / ``--previews`` (``capture``: the probe set needs neither); ``resolution`` and
+    ``spacing`` (m): the defaults, as the help says them."""
     p.add_argument("--resolution", type=int, default=resolution, metavar="N", help=f"face size in texels (default {resolution})")
-    p.add_argument("--spacing", type=float, default=5.0, metavar="M", help="probe spacing along the street in meters (default 5)")
+    p.add_argument("--spacing", type=float, default=spacing, metavar="M",
+                   help=f"probe spacing along the street in meters (default {spacing:g})")
     p.add_argument("--height", type=float, default=2.0, metavar="M", help="probe height above the ground in meters (default 2)")
     p.add_argument("--quality", default=BAKE_QUALITY, choices=list(QUALITIES),
                    help=f"cosine-lobe filter quality (default {BAKE_QUALITY}: <= 0.2%% error per level, docs/bake.md)")

@@ -19,9 +19,10 @@ from envcap.evaluate.run import DEFAULT_LOBE_POWERS, evaluate_scene
 from envcap.evaluate.sweep import DEFAULT_SWEEP, Sweep
 from envcap.outputs import claim_output_dir
 from envcap.probeset.bake import bake_probe_set
+from envcap.probeset.progress import BakeProgress
 from envcap.probeset.store import read_probe_set
 from envcap.runtime import methods as runtime_methods
-from envcap.scene import load_scene
+from envcap.scene import Scene, load_scene
 from envcap.scene.segment import street_segment
 
 
@@ -59,8 +60,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--positions", type=int, default=DEFAULT_SWEEP.per_street, metavar="K",
                    help=f"evaluation positions per street (default {DEFAULT_SWEEP.per_street})")
     p.add_argument("--seed", type=int, default=DEFAULT_SWEEP.seed, help=f"sweep seed, >= 0 (default {DEFAULT_SWEEP.seed})")
-    p.add_argument("--margin", type=float, default=DEFAULT_SWEEP.margin, metavar="M",
-                   help=f"lateral margin from the facades in meters (default {DEFAULT_SWEEP.margin:g})")
+    p.add_argument("--margin", type=float, default=None, metavar="M",
+                   help=f"lateral margin from the facades in meters, less than half of every street's width "
+                        f"(default {DEFAULT_SWEEP.margin:g}; a street narrower than twice the default is sampled on its probe line)")
     p.add_argument("--resolution", type=int, default=None, metavar="N",
                    help="face size of the truth captures (default: the probe set's, at most 64)")
     known = runtime_methods.registered()
@@ -72,6 +74,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--occluders", choices=OCCLUDER_KINDS, default="none",
                    help="also evaluate the dynamic terms against fresh captures with rings of spheres ('ring'), "
                         "walker avatars ('avatars') or both ('all') around crowd positions (default none)")
+    p.add_argument("--quiet", action="store_true",
+                   help="no progress on stderr (warnings and errors still); progress is a bar on a terminal, "
+                        "else a line per stage and every 10 s")
     add_force_argument(p)
     p.set_defaults(func=run)
 
@@ -79,8 +84,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.positions < 1:
         raise ValueError(f"--positions must be >= 1, got {args.positions}")
-    if not (math.isfinite(args.margin) and args.margin >= 0):
-        raise ValueError(f"--margin must be a finite number >= 0, got {args.margin}")
+    if args.margin is not None and not (math.isfinite(args.margin) and args.margin >= 0):
+        raise ValueError(f"--margin must be a finite number >= 0, got {args.margin:g}")
     if args.probes is None and args.probe_resolution < 4:
         raise ValueError(f"--probe-resolution must be >= 4, got {args.probe_resolution}")
     if args.seed < 0:
@@ -92,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
     powers = args.lobes or DEFAULT_LOBE_POWERS
     check_evaluation(estimate_evaluation(args.positions, args.resolution if args.resolution is not None else 64,
                                          len(powers), len(methods)))
-    sweep = Sweep(per_street=args.positions, margin=args.margin, seed=args.seed)
+    sweep = Sweep(per_street=args.positions, margin=DEFAULT_SWEEP.margin if args.margin is None else args.margin,
+                  seed=args.seed)
     inputs = [f for name in args.scene for f in scene_input_files(name)]
     if args.probes is not None:
         inputs.append(args.probes)
@@ -118,18 +124,32 @@ def checked_methods(text: str) -> list[str]:
     return names
 
 
+def check_margin(scene: Scene, margin: float) -> None:
+    """Refuse a ``--margin`` (m) that leaves no room between the facades of one of ``scene``'s
+    streets (``ValueError`` naming the street and its width).  Only a margin the user gave: with
+    the default, a street narrower than twice it is sampled on its probe line (:mod:`envcap.evaluate.sweep`)."""
+    for st in scene.streets:
+        if 2 * margin >= st.width:
+            raise ValueError(f"--margin {margin:g} m leaves no room across street '{st.name}' of scene '{scene.name}', "
+                             f"{st.width:g} m between its facades: give a margin below {st.width / 2:g} m")
+
+
 def evaluate_one(name: str, args: argparse.Namespace, sweep: Sweep, methods: list[str],
                  occluders: list[dict] | None = None) -> EvaluationResult:
     """Evaluate scene ``name`` against its probe set (``--probes``) or one baked in memory (``--bake``);
     with ``--occluders``, the dynamic-occluder evaluation is appended to ``occluders``."""
     scene = load_scene(name)
+    if getattr(args, "margin", None) is not None:
+        check_margin(scene, args.margin)
+    report = BakeProgress("off" if getattr(args, "quiet", False) else "auto", unit="position")
     if args.probes is not None:
         ps = read_probe_set(args.probes)
     else:
         scene = street_segment(scene, args.bake)
-        ps = bake_probe_set(scene, resolution=args.probe_resolution, spacing=args.spacing)
+        ps = bake_probe_set(scene, resolution=args.probe_resolution, spacing=args.spacing,
+                            report=BakeProgress(report.mode), progress=False if report.mode == "off" else None)
     res = evaluate_scene(scene, ps, sweep=sweep, methods=methods, lobe_powers=args.lobes or DEFAULT_LOBE_POWERS,
-                         resolution=args.resolution)
+                         resolution=args.resolution, report=report)
     if occluders is not None and getattr(args, "occluders", "none") != "none":
         occluders.append(evaluate_occluders(scene, ps, args.occluders,
                                             resolution=args.resolution if args.resolution is not None else 64))

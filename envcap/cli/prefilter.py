@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap.cli.output_options import add_force_argument
+from envcap.core.input_path import require_file
 from envcap.core.latlong import latlong_to_cube, load_latlong
 from envcap.core.lobes import lobe_ladder
 from envcap.formats.exr_cube import ExrDataError, read_exr_cube, write_exr_cube
@@ -54,9 +55,7 @@ def load_environment(path: str | Path, size: int | None) -> tuple[NDArray[np.flo
     OpenEXR cube env map nor a 2:1 lat-long image (naming both reasons), for a truncated EXR, for
     NaN/Inf or negative texels, and for a bad ``size`` (< 1, or not ``N >> k`` of a cube input).
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"input file not found: {path}")
+    path = require_file(path, "input file")
     if size is not None and (isinstance(size, bool) or int(size) < 1):
         raise ValueError(f"--size must be a positive integer, got {size}")
     try:

@@ -7,13 +7,15 @@ from pathlib import Path
 
 from envcap.gpu.context import create_context
 from envcap.outputs.guard import check_file_replaceable, check_writable, resolve_output
-from envcap.scene import list_scenes, load_scene, scene_path
+from envcap.scene import list_scenes, load_scene
+from envcap.scene.load import check_scene
 from envcap.scene.scene_preview import save_previews
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("scenes", help="list the bundled city scenes (name, description)")
-    p.add_argument("scene", nargs="*", help="scene names or .toml paths to show (default: all bundled scenes)")
+    p.add_argument("scene", nargs="*", help="scene names or .toml paths to show, each read and checked "
+                                            "(default: all bundled scenes)")
     p.add_argument("--details", action="store_true",
                    help="build each scene and print triangles, bounding box, streets and effects")
     p.add_argument("--preview", metavar="DIR", type=Path,
@@ -28,10 +30,8 @@ def _preview_path(folder: Path, scene_name: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.scene:
-        names = [(s, "") for s in args.scene]
-        for s, _ in names:
-            scene_path(s)  # fail early with a clear error on a bad name
+    if args.scene:   # each named scene is read and checked (not built): a bad file is an error, exit 2
+        names = [(s, " ".join(check_scene(s).description.split())) for s in args.scene]
     else:
         names = list_scenes()
     if not (args.details or args.preview):

@@ -15,6 +15,21 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 
+def format_number(value: Any) -> str:
+    """A number for a message as Python writes a plain number (``5``, ``2.5``, ``3.0``, ``1e+30``,
+    ``nan``), numpy scalars included (never ``np.float64(2.5)``); anything else as its ``repr``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return repr(value)
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    return repr(float(value))
+
+
+def format_numbers(values: Any) -> str:
+    """A sequence of numbers for a message: ``[1.0, 2.5, -3.0]`` (see :func:`format_number`)."""
+    return "[" + ", ".join(format_number(v) for v in np.asarray(values).ravel().tolist()) + "]"
+
+
 def finite_float(value: Any, name: str) -> float:
     """``value`` (a Python or numpy number, not a bool) as a finite float."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import os
 import sys
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -28,6 +27,7 @@ from numpy.typing import NDArray
 
 from envcap.core import budget
 from envcap.core.color import srgb_to_linear
+from envcap.core.input_path import require_file
 
 __all__ = ["BAND_PIXELS", "read_rgb_radiance", "one_line"]
 
@@ -69,9 +69,7 @@ def read_rgb_radiance(
     """
     import OpenImageIO as oiio
 
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"{what} not found: {p}")
+    p = require_file(path, what)
     inp = oiio.ImageInput.open(str(p))
     if inp is None:
         raise ValueError(f"cannot read {what} {p}: {one_line(oiio.geterror()) or 'unknown format'}")

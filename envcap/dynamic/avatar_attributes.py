@@ -31,6 +31,7 @@ from envcap.dynamic.crowd_lod import NEAR_FACTOR, avatar_sphere
 from envcap.dynamic.gltf_buffers import GltfError, append_accessor
 from envcap.dynamic.gltf_skin import SkinnedAvatar, avatar_from_gltf
 from envcap.dynamic.proxy_spheres import ProxySpheres, fit_proxy_spheres, pose_spheres
+from envcap.probeset.progress import BakeProgress
 
 BLOCKERS_ATTRIBUTE = "_ENVCAP_BLOCKERS"
 BLOCKER_WEIGHTS_ATTRIBUTE = "_ENVCAP_BLOCKER_WEIGHTS"
@@ -61,16 +62,22 @@ def is_envcap_avatar(path: str | Path) -> bool:
 
 
 def annotate(gltf: pygltflib.GLTF2, k: int = 4, animation: int | None = 0, reduce: str = "mean",
-             exclude_weight: float = 0.0, name: str = "glTF") -> tuple[SkinnedAvatar, ProxySpheres, Blockers]:
+             exclude_weight: float = 0.0, name: str = "glTF",
+             report: BakeProgress | None = None) -> tuple[SkinnedAvatar, ProxySpheres, Blockers]:
     """Add the attributes and extras (module docstring) to ``gltf`` in memory; returns what was
-    computed (``name``: the file, for messages).  Refuses a file that already has ``_ENVCAP_BLOCKERS``."""
+    computed (``name``: the file, for messages).  Refuses a file that already has ``_ENVCAP_BLOCKERS``.
+    ``report``: stages ``spheres``, ``blockers`` (counting vertices) and ``one sphere``."""
+    report = BakeProgress("off") if report is None else report
     avatar = avatar_from_gltf(gltf, name)
+    report.start("spheres", 0)
     spheres = fit_proxy_spheres(avatar)
     if not np.any(spheres.radii > 0):
         raise GltfError("no joint has enough vertices (>= 4, not flat) for a proxy sphere")
     if animation is not None and not avatar.animations:
         animation = None
-    blockers = select_blockers(avatar, spheres, k, animation, reduce, exclude_weight)
+    report.start("blockers", len(avatar.positions))
+    blockers = select_blockers(avatar, spheres, k, animation, reduce, exclude_weight, progress=report.advance)
+    report.finish()
     joint_type = pygltflib.UNSIGNED_BYTE if avatar.joint_count <= 256 else pygltflib.UNSIGNED_SHORT
     pad = 4 - blockers.joints.shape[1]
     joints = np.pad(blockers.joints, ((0, 0), (0, pad)))
@@ -92,8 +99,10 @@ def annotate(gltf: pygltflib.GLTF2, k: int = 4, animation: int | None = 0, reduc
                                     "animation": animation, "measure": MEASURE}
     if animation is not None:
         ones = []
+        report.start("one sphere", 0)
         for t in blockers.keyframes:
             ones.append(avatar_sphere(*pose_spheres(spheres, avatar, animation, float(t))))
+        report.finish()
         anim = gltf.animations[animation]
         anim.extras = dict(anim.extras or {})
         anim.extras["envcap_avatar_sphere"] = {
@@ -107,8 +116,11 @@ def annotate(gltf: pygltflib.GLTF2, k: int = 4, animation: int | None = 0, reduc
 
 def write_annotated(source: str | Path, target: str | Path, **options) -> tuple[SkinnedAvatar, ProxySpheres, Blockers]:
     """Read ``source`` (``.glb``/``.gltf``), :func:`annotate` it, save a ``.glb`` at ``target``
-    (a path the caller has guarded; see ``envcap avatar``).  ``options``: those of :func:`annotate`."""
+    (a path the caller has guarded; see ``envcap avatar``).  ``options``: those of :func:`annotate`
+    (``report`` included).  The caller estimates the cost first (:mod:`envcap.dynamic.avatar_cost`)."""
     check_options(options.get("k", 4), options.get("reduce", "mean"), options.get("exclude_weight", 0.0))
+    report = options.get("report") or BakeProgress("off")
+    report.start("read", 0)
     try:
         gltf = pygltflib.GLTF2().load(str(source))
     except FileNotFoundError:
@@ -118,5 +130,7 @@ def write_annotated(source: str | Path, target: str | Path, **options) -> tuple[
     if gltf is None:
         raise GltfError(f"{source}: not a readable glTF 2.0 file")
     result = annotate(gltf, name=str(source), **options)
+    report.start("write", 0)
     gltf.save_binary(str(target))
+    report.finish()
     return result

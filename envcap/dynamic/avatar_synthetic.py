@@ -205,3 +205,59 @@ def walker_gltf() -> pygltflib.GLTF2:
 def write_walker(path) -> None:
     """Write ``walker`` as a ``.glb`` at ``path`` (the caller chooses and guards the path)."""
     walker_gltf().save_binary(str(path))
+
+
+def many_bone_gltf(joints: int, keyframes: int = 5, spacing: float = 0.3, radius: float = 0.05,
+                   length: float = 0.2) -> pygltflib.GLTF2:
+    """A stress avatar with ``joints`` joints (>= 2): a root joint (no vertices) and ``joints - 1``
+    children on a square grid ``spacing`` m apart in the X-Z plane, each carrying one vertical
+    capsule (:func:`capsule`, ``radius`` m, ``length`` m: 92 vertices) skinned to it alone; one
+    animation of ``keyframes`` keyframes 1/4 s apart in which each child swings about X by up to
+    30 deg.  Cost of ``envcap avatar`` grows as joints x vertices x keyframes, i.e. with the
+    square of ``joints`` (issue 20); ``JOINTS_0`` is unsigned short past 255 joints, indices
+    unsigned int past 65,535 vertices."""
+    if joints < 2 or keyframes < 1:
+        raise ValueError(f"many_bone_gltf needs joints >= 2 and keyframes >= 1, got {joints}, {keyframes}")
+    side = math.ceil(math.sqrt(joints - 1))
+    p, n, t = capsule(np.zeros(3), np.array([0.0, length, 0.0]), radius)
+    grid = np.array([[(i % side) * spacing, 0.0, (i // side) * spacing] for i in range(joints - 1)])
+    count = len(p)
+    pos = (p[None] + grid[:, None]).reshape(-1, 3)
+    nrm = np.broadcast_to(n, (joints - 1, count, 3)).reshape(-1, 3)
+    tris = (t[None] + count * np.arange(joints - 1)[:, None, None]).reshape(-1)
+    jts = np.zeros((len(pos), 4))
+    jts[:, 0] = np.repeat(np.arange(1, joints), count)
+    wts = np.zeros((len(pos), 4))
+    wts[:, 0] = 1.0
+    gltf = pygltflib.GLTF2(asset=pygltflib.Asset(generator="envcap avatar_synthetic (many_bone)", version="2.0"))
+    gltf.set_binary_blob(b"")
+    attrs = pygltflib.Attributes(
+        POSITION=append_accessor(gltf, pos, pygltflib.FLOAT, target=pygltflib.ARRAY_BUFFER, with_bounds=True),
+        NORMAL=append_accessor(gltf, nrm, pygltflib.FLOAT, target=pygltflib.ARRAY_BUFFER),
+        JOINTS_0=append_accessor(gltf, jts, pygltflib.UNSIGNED_BYTE if joints <= 256 else pygltflib.UNSIGNED_SHORT,
+                                 target=pygltflib.ARRAY_BUFFER),
+        WEIGHTS_0=append_accessor(gltf, wts, pygltflib.FLOAT, target=pygltflib.ARRAY_BUFFER))
+    index_type = pygltflib.UNSIGNED_SHORT if len(pos) <= 65535 else pygltflib.UNSIGNED_INT
+    indices = append_accessor(gltf, tris, index_type, target=pygltflib.ELEMENT_ARRAY_BUFFER)
+    gltf.meshes.append(pygltflib.Mesh(name="bones", primitives=[pygltflib.Primitive(attributes=attrs, indices=indices)]))
+    gltf.nodes.append(pygltflib.Node(name="root", children=list(range(1, joints))))
+    for i in range(joints - 1):
+        gltf.nodes.append(pygltflib.Node(name=f"bone_{i}", translation=grid[i].tolist()))
+    ibm = np.stack([np.eye(4)] * joints)
+    ibm[1:, :3, 3] = -grid
+    gltf.skins.append(pygltflib.Skin(name="bones", joints=list(range(joints)), skeleton=0,
+                                     inverseBindMatrices=append_accessor(gltf, ibm, pygltflib.FLOAT)))
+    gltf.nodes.append(pygltflib.Node(name="bones_mesh", mesh=0, skin=0))
+    gltf.scenes.append(pygltflib.Scene(name="bones", nodes=[0, joints]))
+    gltf.scene = 0
+    times = append_accessor(gltf, 0.25 * np.arange(keyframes), pygltflib.FLOAT, with_bounds=True)
+    phase = 2 * math.pi * np.arange(keyframes) / max(keyframes, 2)
+    samplers, channels = [], []
+    for i in range(1, joints):
+        quats = np.array([_quat("x", math.radians(30) * math.sin(ph + i)) for ph in phase])
+        samplers.append(pygltflib.AnimationSampler(input=times, output=append_accessor(gltf, quats, pygltflib.FLOAT),
+                                                   interpolation="LINEAR"))
+        channels.append(pygltflib.AnimationChannel(sampler=len(samplers) - 1, target=pygltflib.AnimationChannelTarget(
+            node=i, path="rotation")))
+    gltf.animations.append(pygltflib.Animation(name="swing", samplers=samplers, channels=channels))
+    return gltf

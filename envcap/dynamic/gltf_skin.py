@@ -166,15 +166,16 @@ def joint_matrices(avatar: SkinnedAvatar, animation: int | None = None, time: fl
     return global_matrices(avatar, animation, time)[avatar.joint_nodes] @ avatar.inverse_bind
 
 
-def skin(joint_mats: NDArray, avatar: SkinnedAvatar) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Posed ``(positions, unit normals)`` ``(V, 3)`` by linear blend skinning with ``joint_mats``
-    ``(J, 4, 4)``.  Normals go through the blended matrix's cofactor matrix (its inverse transpose
-    times its determinant, defined for singular matrices too; a normal that collapses to 0 stays 0)."""
-    blend = np.einsum("vi,vijk->vjk", avatar.weights, joint_mats[avatar.joints])
-    pos = np.einsum("vjk,vk->vj", blend[:, :3, :3], avatar.positions) + blend[:, :3, 3]
+def skin(joint_mats: NDArray, avatar: SkinnedAvatar, rows: slice = slice(None)) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Posed ``(positions, unit normals)`` ``(n, 3)`` of the vertices ``rows`` (default all) by
+    linear blend skinning with ``joint_mats`` ``(J, 4, 4)``.  Normals go through the blended
+    matrix's cofactor matrix (its inverse transpose times its determinant, defined for singular
+    matrices too; a normal that collapses to 0 stays 0)."""
+    blend = np.einsum("vi,vijk->vjk", avatar.weights[rows], joint_mats[avatar.joints[rows]])
+    pos = np.einsum("vjk,vk->vj", blend[:, :3, :3], avatar.positions[rows]) + blend[:, :3, 3]
     a, b, c = blend[:, :3, 0], blend[:, :3, 1], blend[:, :3, 2]
     cof = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=2)
-    nrm = np.einsum("vjk,vk->vj", cof, avatar.normals) * np.sign(np.einsum("vj,vj->v", a, np.cross(b, c)))[:, None]
+    nrm = np.einsum("vjk,vk->vj", cof, avatar.normals[rows]) * np.sign(np.einsum("vj,vj->v", a, np.cross(b, c)))[:, None]
     length = np.linalg.norm(nrm, axis=1, keepdims=True)
     return pos, nrm / np.where(length > 0, length, 1.0)
 

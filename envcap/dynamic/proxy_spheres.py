@@ -41,12 +41,22 @@ class ProxySpheres:
     owner: NDArray[np.int64]
 
 
-def joint_weight_matrix(avatar: SkinnedAvatar) -> NDArray[np.float64]:
-    """``(V, J)`` skinning weight of every vertex to every joint (slots naming one joint summed)."""
-    w = np.zeros((len(avatar.positions), avatar.joint_count))
-    rows = np.repeat(np.arange(len(avatar.positions)), 4)
-    np.add.at(w, (rows, avatar.joints.reshape(-1)), avatar.weights.reshape(-1))
+def joint_weight_matrix(avatar: SkinnedAvatar, rows: slice = slice(None)) -> NDArray[np.float64]:
+    """``(n, J)`` skinning weight of the vertices ``rows`` (default all) to every joint (slots
+    naming one joint summed).  ``n x J`` float64: callers with many joints take a slice at a time."""
+    joints, weights = avatar.joints[rows], avatar.weights[rows]
+    w = np.zeros((len(joints), avatar.joint_count))
+    np.add.at(w, (np.repeat(np.arange(len(joints)), 4), joints.reshape(-1)), weights.reshape(-1))
     return w
+
+
+def owner_joints(avatar: SkinnedAvatar) -> NDArray[np.int64]:
+    """``(V,)`` the joint carrying each vertex's largest skinning weight (repeated slots summed;
+    ties: the lower joint index), from the four slots alone (``V x 16`` work, not ``V x J``)."""
+    j, w = avatar.joints.astype(np.int64), avatar.weights
+    summed = np.where(j[:, :, None] == j[:, None, :], w[:, None, :], 0.0).sum(axis=2)  # (V, 4): slot's joint total
+    best = summed.max(axis=1, keepdims=True)
+    return np.where(summed == best, j, np.iinfo(np.int64).max).min(axis=1)
 
 
 def hull_sphere(points: NDArray) -> tuple[NDArray[np.float64], float]:
@@ -74,15 +84,15 @@ def hull_sphere(points: NDArray) -> tuple[NDArray[np.float64], float]:
 
 def fit_proxy_spheres(avatar: SkinnedAvatar) -> ProxySpheres:
     """Fit the proxy sphere of every joint of ``avatar`` (rule in the module docstring)."""
-    owner = np.argmax(joint_weight_matrix(avatar), axis=1).astype(np.int64)
+    owner = owner_joints(avatar)
     homog = np.concatenate([avatar.positions, np.ones((len(avatar.positions), 1))], axis=1)
     centers = np.zeros((avatar.joint_count, 3))
     radii = np.zeros(avatar.joint_count)
-    counts = np.zeros(avatar.joint_count, dtype=np.int64)
+    counts = np.bincount(owner, minlength=avatar.joint_count).astype(np.int64)
+    order = np.argsort(owner, kind="stable")   # each joint's vertices in their file order
+    ends = np.cumsum(counts)
     for j in range(avatar.joint_count):
-        sel = owner == j
-        counts[j] = int(sel.sum())
-        local = (homog[sel] @ avatar.inverse_bind[j].T)[:, :3]
+        local = (homog[order[ends[j] - counts[j]:ends[j]]] @ avatar.inverse_bind[j].T)[:, :3]
         centers[j], radii[j] = hull_sphere(local)
     return ProxySpheres(centers, radii, counts, owner)
 

@@ -43,6 +43,7 @@ from envcap.gpu.context import create_context
 from envcap.probeset.bake_bounds import check_gl_limits
 from envcap.probeset.manifest import Manifest
 from envcap.probeset.probe_set import ProbeSet
+from envcap.probeset.progress import BakeProgress
 from envcap.probeset.store import read_probe_set
 from envcap.runtime import methods as runtime_methods
 from envcap.runtime.methods import METHODS
@@ -96,7 +97,7 @@ def check_settings(scene: Any, probe_set: ProbeSet, methods: Sequence[str], lobe
         raise ValueError("sun_variants must hold True and/or False")
     n = int(resolution) if resolution is not None else min(int(probe_set.resolution), 64)
     if n < 4:
-        raise ValueError(f"evaluation resolution must be >= 4 texels per face, got {n}")
+        raise ValueError(f"evaluation resolution (--resolution) must be >= 4 texels per face, got {n}")
     # The manifest does not record the bake's prefilter quality: the truth is filtered at the default one.
     return EvaluationSettings(tuple(names), tuple(lps), suns, False if False in suns else True, n, "default")
 
@@ -251,6 +252,7 @@ def evaluate_scene(
     sun_variants: Sequence[bool] = (True, False),
     progress: bool | None = None,
     max_positions: int = MAX_POSITIONS,
+    report: BakeProgress | None = None,
 ) -> EvaluationResult:
     """Evaluate the probe set ``probe_set`` of ``scene`` against fresh captures.
 
@@ -266,6 +268,9 @@ def evaluate_scene(
     floor) and measure there what compositing the sky after filtering costs.  ``max_positions``:
     the most positions (:data:`envcap.evaluate.bounds.MAX_POSITIONS`); the position count, the
     truth face size and the memory are checked before any work (:mod:`envcap.evaluate.bounds`).
+    ``report``: stages ``positions``, ``floor``, ``strips`` with positions done and positions/s
+    (:class:`envcap.probeset.progress.BakeProgress`, as ``envcap evaluate`` prints them); without
+    it a tqdm bar on a terminal, as ``progress`` says.
     """
     t_all = time.perf_counter()
     settings = check_settings(scene, probe_set, methods, lobe_powers, sun_variants, resolution)
@@ -296,20 +301,31 @@ def evaluate_scene(
     key = "planes_mip" if "planes_mip" in settings.methods else settings.methods[0]
     wkey = 64.0 if 64.0 in settings.lobe_powers else settings.lobe_powers[0]
     kept: dict[int, dict[str, Any]] = {}
+    stages = BakeProgress("off") if report is None else report
     try:
-        for ep in tqdm(pos_list, desc=f"evaluate {scene.name}", unit="pos", disable=None if progress is None else not progress):
+        stages.start("positions", len(pos_list))
+        bar = tqdm(pos_list, desc=f"evaluate {scene.name}", unit="pos",
+                   disable=report is not None or (None if progress is None else not progress))
+        for ep in bar:
             at = ev.truth_at(ep)
             rows += ev.error_rows(at)
             shading += ev.shading_rows(at, materials)
+            stages.advance()
         # the evaluator's own floor: the probes' own positions (every method must match the truth)
         fl_pos = floor_positions(manifest, floor_probes)
+        stages.start("floor", len(fl_pos))
         for ep in positions_from_array(manifest, np.array(fl_pos)) if fl_pos else []:
             at = ev.truth_at(ep)
             composite_rows += ev.composite_rows(at)
             floor_rows += ev.error_rows(at)
+            stages.advance()
         # the worst positions, captured again with their cubes kept for the image strips
-        for idx in worst_positions(rows, key, wkey, settings.primary, keep_worst):
+        worst = worst_positions(rows, key, wkey, settings.primary, keep_worst)
+        stages.start("strips", len(worst))
+        for idx in worst:
             kept[idx] = ev.strip(ev.truth_at(pos_list[idx]))
+            stages.advance()
+        stages.finish()
     finally:
         truth.release()
         if own:
@@ -343,13 +359,15 @@ def _meta(scene: str, probe_set: ProbeSet, settings: EvaluationSettings, sweep: 
                                                  for r in composite_rows])}
 
 
-def quick_evaluation(scene: Any, probe_set_dir: str | Path, out_dir: str | Path, ctx: Any = None) -> Path:
+def quick_evaluation(scene: Any, probe_set_dir: str | Path, out_dir: str | Path, ctx: Any = None,
+                     report: BakeProgress | None = None) -> Path:
     """A short evaluation (6 positions per street, mirror + w in {256, 64, 16}, <~30 s) of the
     probe set in ``probe_set_dir``; writes the report into ``out_dir`` (atomically), prints
-    where the report and pictures are and returns the path of ``report.md``."""
+    where the report and pictures are and returns the path of ``report.md``.  ``report``: as
+    :func:`evaluate_scene`'s."""
     ps = read_probe_set(probe_set_dir)
     res = evaluate_scene(scene, ps, sweep=QUICK_SWEEP, lobe_powers=(math.inf, 256.0, 64.0, 16.0),
-                         resolution=min(ps.resolution, 32), ctx=ctx, keep_worst=2)
+                         resolution=min(ps.resolution, 32), ctx=ctx, keep_worst=2, report=report)
     out = write_report([res], out_dir)
     report = Path(out) / "report.md"
     print(f"evaluation: {report} (plots and worst-position strips in {Path(out)})")

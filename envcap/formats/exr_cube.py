@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap.core.image_read import one_line
+from envcap.core.input_path import require_file
 from envcap.outputs import atomic_output_file
 
 HALF_MAX = float(np.finfo(np.float16).max)
@@ -200,9 +201,7 @@ def read_exr_cube(path: str | os.PathLike[str], *, radiance: bool = True
     """
     import OpenEXR
 
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"EXR file not found: {p}")
+    p = require_file(path, "EXR file")
     if not OpenEXR.isOpenExrFile(str(p)):
         raise ValueError(f"{p} is not an OpenEXR file")
     try:

@@ -1,7 +1,8 @@
 """Output safety: envcap writes its outputs atomically and replaces only what it wrote.
 
 * :mod:`~envcap.outputs.atomic`: ``atomic_output_dir`` / ``atomic_output_file``, the writers'
-  entry points;
+  entry points (a full disk is one line naming the output); ``retire_output_dir`` removes an
+  output envcap wrote that a run made stale;
 * :mod:`~envcap.outputs.claim`: check and lock an output before the work (``claim_output_dir``);
 * :mod:`~envcap.outputs.guard`: which paths may be written (never an input, never the working
   directory, never a foreign non-empty directory without ``force``);

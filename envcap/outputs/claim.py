@@ -21,6 +21,7 @@ claiming the path again.  The lock is released when the block ends.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -60,23 +61,35 @@ class OutputClaim(os.PathLike):
         check_not_inputs(self.path, inputs)
 
 
-def _make_parents(folder: Path) -> list[Path]:
-    """Create ``folder`` and the missing folders above it; return those created, deepest first."""
+def make_parents(folder: Path) -> list[Path]:
+    """Create ``folder`` and the missing folders above it; return those created, deepest first.
+    A folder that cannot be created is :class:`~envcap.outputs.guard.OutputRefused` naming it and
+    why (a file in the way, no space, ...), the folders made so far removed again."""
     missing = []
     while not folder.exists():
         missing.append(folder)
         folder = folder.parent
-    created = []
+    created: list[Path] = []
     for d in reversed(missing):
         try:
             d.mkdir()
         except FileExistsError:
-            continue
+            if d.is_dir():
+                continue
+            remove_if_empty(created[::-1])
+            raise OutputRefused(f"cannot create folder {d}: a file of that name is in the way") from None
+        except OSError as exc:
+            remove_if_empty(created[::-1])
+            why = (exc.strerror or str(exc)).lower()
+            if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+                why = "no space left on the device (the disk is full)"
+            raise OutputRefused(f"cannot create folder {d}: {why}") from None
         created.append(d)
     return created[::-1]
 
 
-def _remove_if_empty(folders: list[Path]) -> None:
+def remove_if_empty(folders: list[Path]) -> None:
+    """Remove the folders :func:`make_parents` created (deepest first) while they are empty."""
     for d in folders:
         try:
             d.rmdir()
@@ -93,14 +106,14 @@ def claim_output_dir(path: str | os.PathLike[str], *, kind: str = "output",
     another run holds the output."""
     final = resolve_output(path)
     check_output_target(final, inputs)
-    created = _make_parents(final.parent)
+    created = make_parents(final.parent)
     try:
         lock = OutputLock(final)
     except PermissionError as exc:
-        _remove_if_empty(created)
+        remove_if_empty(created)
         raise OutputRefused(f"cannot write output directory {final}: {exc.strerror} in {final.parent}") from None
     except BaseException:
-        _remove_if_empty(created)
+        remove_if_empty(created)
         raise
     try:
         recover(final)
@@ -109,6 +122,6 @@ def claim_output_dir(path: str | os.PathLike[str], *, kind: str = "output",
     except BaseException:
         with deferred_signals():
             lock.release()
-            _remove_if_empty(created)
+            remove_if_empty(created)
         raise
     lock.release()

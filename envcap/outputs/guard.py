@@ -29,7 +29,11 @@ class OutputRefused(ValueError):
 
 def resolve_output(path: str | os.PathLike[str]) -> Path:
     """The absolute path, symbolic links resolved, that an output named ``path`` will have."""
-    final = Path(os.path.abspath(os.fspath(path))).resolve()
+    try:
+        final = Path(os.path.abspath(os.fspath(path))).resolve()
+    except (RuntimeError, OSError) as exc:   # a loop of symbolic links (Python 3.11: RuntimeError)
+        raise OutputRefused(f"output {path} cannot be resolved: a loop of symbolic links "
+                            f"({' '.join(str(exc).split())})") from None
     if final.parent == final:
         raise OutputRefused(f"output directory {final} is the file system root")
     return final
@@ -92,6 +96,18 @@ def check_output_target(final: Path, inputs: Iterable[str | os.PathLike[str]] = 
                             f"directory (--force does not change this)")
     check_not_inputs(final, inputs)
     check_writable(final)
+
+
+def check_file_target(final: Path) -> None:
+    """Refuse a single-file output ``final`` whose folder cannot be created or written: below a
+    file, or a folder without write permission."""
+    above = final.parent
+    while not above.exists():
+        above = above.parent
+    if not above.is_dir():
+        raise OutputRefused(f"cannot write output {final}: {above} is a file, not a folder")
+    if not os.access(above, os.W_OK | os.X_OK):
+        raise OutputRefused(f"cannot write output {final}: the folder {above} is not writable")
 
 
 def check_writable(folder: Path) -> None:

@@ -9,9 +9,12 @@ writer may have removed it in between), and starts over when it is not.
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
 from pathlib import Path
+
+from envcap.outputs.guard import OutputRefused
 
 
 class OutputBusy(RuntimeError):
@@ -31,21 +34,45 @@ class OutputLock:
         self.path = lock_path(final)
         self._fd: int | None = None
         for _ in range(100):
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            fd = self._open()
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
                 os.close(fd)
                 raise OutputBusy(f"another envcap run (process {holder}) is writing {final}; "
-                                 f"wait for it to finish or choose another output directory") from None
+                                 f"wait for it to finish or choose another output") from None
+            except BaseException:
+                os.close(fd)
+                raise
             if self._is_on_disk(fd):
-                os.ftruncate(fd, 0)
-                os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
                 self._fd = fd
+                try:   # the holder's pid is only for the message above: a full disk does not stop the run here
+                    os.ftruncate(fd, 0)
+                    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+                except OSError as exc:
+                    if exc.errno not in (errno.ENOSPC, errno.EDQUOT):
+                        self.release()
+                        raise
                 return
             os.close(fd)  # removed by its previous holder after we opened it: start over
         raise OutputBusy(f"could not lock {final}: its lock file {self.path} keeps being replaced")
+
+    def _open(self) -> int:
+        """Open (create) the lock file; an ``OSError`` becomes one line naming it and the reason."""
+        try:
+            return os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except PermissionError:
+            raise   # the caller says which folder is not writable
+        except OSError as exc:
+            why = (exc.strerror or str(exc)).lower()
+            if exc.errno == errno.EISDIR:
+                why = "a directory of that name is in the way (not envcap's; move it)"
+            elif exc.errno == errno.ENOENT and self.path.parent.is_dir():
+                why = f"the file system of {self.path.parent} does not allow new files there"
+            elif exc.errno in (errno.ENOSPC, errno.EDQUOT):
+                why = "no space left on the device (the disk is full)"
+            raise OutputRefused(f"cannot write output {self.final}: cannot create its lock file {self.path}: {why}") from None
 
     def _is_on_disk(self, fd: int) -> bool:
         try:

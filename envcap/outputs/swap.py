@@ -4,6 +4,8 @@ names a complete output: the old one until the new one is in place, then the new
 Names beside an output ``NAME`` (all in its folder, all envcap's own):
 
 * ``.NAME.tmp-XXXXXXXX/`` (8 hex digits): a new output being written (:func:`make_temp_dir`);
+* ``.NAME.tmp-XXXXXXXX.EXT``: a new single file (``NAME.EXT``) being written
+  (:func:`make_temp_file`; earlier versions' names had 8 of ``[a-z0-9_]``, ``tempfile``'s);
 * ``.NAME.old/``: the old output set aside during a two-step swap;
 * ``.NAME.swap``: the journal of a two-step swap, present from before the first rename until
   after the second;
@@ -17,7 +19,8 @@ and is removed.  Where that call is missing (other systems, some file systems) t
 two renames (old aside, new in) inside the journal.  Both run with SIGINT/SIGTERM held back;
 a SIGKILL between the two renames leaves the journal, the old output set aside and no output,
 and :func:`recover` (run by the next writer of that output, under its lock) puts the old output
-back.  :func:`recover` also removes every leftover temporary directory.
+back.  :func:`recover` also removes every leftover temporary directory, :func:`recover_file` the
+leftover temporary files of a single-file output (under that output's lock, so never a live one).
 """
 
 from __future__ import annotations
@@ -57,6 +60,35 @@ HAS_EXCHANGE = _RENAMEAT2 is not None  # this system has renameat2 (a file syste
 def temp_name_pattern(final: Path) -> re.Pattern[str]:
     """Names of the temporary directories of output ``final`` (see the module docstring)."""
     return re.compile(rf"\.{re.escape(final.name)}\.tmp-[0-9a-f]{{8}}")
+
+
+def temp_file_pattern(final: Path) -> re.Pattern[str]:
+    """Names of the temporary files of the single-file output ``final`` (module docstring)."""
+    return re.compile(rf"\.{re.escape(final.name)}\.tmp-[a-z0-9_]{{8}}{re.escape(final.suffix)}")
+
+
+def make_temp_file(final: Path) -> Path:
+    """Create an empty owner-only temporary file ``.NAME.tmp-XXXXXXXX.EXT`` beside ``final``."""
+    while True:
+        tmp = final.with_name(f".{final.name}.tmp-{secrets.token_hex(4)}{final.suffix}")
+        try:
+            os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o600))
+            return tmp
+        except FileExistsError:
+            continue
+
+
+def recover_file(final: Path) -> list[Path]:
+    """Remove the temporary files a killed writer of the single-file output ``final`` left (only
+    envcap's names, :func:`temp_file_pattern`; regular files only).  Call with the output's lock
+    held.  Returns the paths removed."""
+    pattern, removed = temp_file_pattern(final), []
+    with deferred_signals():
+        for entry in sorted(final.parent.iterdir()):
+            if pattern.fullmatch(entry.name) and entry.is_file() and not entry.is_symlink():
+                entry.unlink(missing_ok=True)
+                removed.append(entry)
+    return removed
 
 
 def aside_path(final: Path) -> Path:

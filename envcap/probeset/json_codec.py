@@ -29,10 +29,11 @@ import os
 import re
 import types
 import typing
-from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
+
+from envcap.core.input_path import require_file
 
 T = TypeVar("T")
 
@@ -193,9 +194,7 @@ def to_json(obj: Any) -> dict[str, Any]:
 def read_json_file(path: str | os.PathLike[str], what: str) -> Any:
     """The JSON document in the file ``path``: ``FileNotFoundError`` ("``what`` not found: PATH")
     or :class:`ManifestError` (not valid JSON, naming the file)."""
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"{what} not found: {p}")
+    p = require_file(path, what)
     try:
         return json.loads(p.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as e:

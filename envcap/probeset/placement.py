@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap.core.budget import check_count
+from envcap.core.checks import format_number
 from envcap.probeset.planes import Planes
 from envcap.scene.model import Street
 
@@ -40,10 +41,15 @@ class ProbePlacement:
     planes: Planes
 
 
+def _plain(value: object) -> str:
+    """A number as a user typed it (``1e+30``, ``nan``, ``5``), anything else as its repr."""
+    return format_number(value) if isinstance(value, (int, float, np.number)) and not isinstance(value, bool) else repr(value)
+
+
 def check_spacing(spacing: float) -> float:
     """``spacing`` (m) as a float: finite and > 0 (``ValueError`` naming the probe spacing)."""
     if not (isinstance(spacing, (int, float)) and math.isfinite(spacing) and spacing > 0):
-        raise ValueError(f"probe spacing must be a positive number of meters, got {spacing!r}")
+        raise ValueError(f"probe spacing (--spacing) must be a positive number of meters, got {_plain(spacing)}")
     return float(spacing)
 
 
@@ -77,7 +83,7 @@ def place_probes(street: Street, spacing: float = 5.0, height: float = 2.0, *,
     """
     check_spacing(spacing)
     if not (isinstance(height, (int, float)) and math.isfinite(height) and 0 < height < 1000):
-        raise ValueError(f"probe height must be in (0, 1000) m above the ground, got {height!r}")
+        raise ValueError(f"probe height (--height) must be in (0, 1000) m above the ground, got {_plain(height)}")
     count = check_count(f"probes on street '{street.name}' ({street.length:g} m at spacing {spacing:g} m)",
                         probe_count(street, spacing), max_probes, "--spacing")
     mid = 0.5 * (street.start + street.end)

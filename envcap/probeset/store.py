@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from envcap.core.input_path import require_dir
 from envcap.formats.exr_cube import read_exr_cube
 from envcap.formats.ktx2 import read_ktx2
 from envcap.formats.registry import default_writer_names, select_writers
@@ -120,9 +121,7 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
     (:func:`envcap.probeset.probe_set.check_texels`: the layer and level at fault), distances
     finite and >= 0.
     """
-    root = Path(path)
-    if not root.is_dir():
-        raise FileNotFoundError(f"probe-set directory not found: {root}")
+    root = require_dir(path, "probe-set directory")
     if (root / INDEX_FILE).is_file() and not (root / MANIFEST_FILE).is_file():
         return read_city_probe_set(root, distance=distance)
     mpath = root / MANIFEST_FILE

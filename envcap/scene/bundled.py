@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
+from envcap.core.input_path import require_file
 from envcap.core.resources import city_scenes_dir
 from envcap.scene.parse import read_toml
 
@@ -29,13 +31,11 @@ def scene_path(name_or_path: str | Path) -> Path:
     p = Path(name_or_path)
     looks_like_path = isinstance(name_or_path, Path) or p.suffix == ".toml" or len(p.parts) > 1
     if looks_like_path:
-        if p.is_dir():
-            raise ValueError(f"scene path {p} is a directory, expected a .toml file")
-        if not p.is_file():
-            raise FileNotFoundError(f"scene file {p} not found")
-        return p
+        return require_file(p, "scene file", f"scene file {p} not found")
     bundled = city_scenes_dir() / f"{name_or_path}.toml"
     if bundled.is_file():
         return bundled
+    if os.path.lexists(p):   # not a bundled name, but something is there: a file, or say what it is
+        return require_file(p, "scene file", f"scene file {p} not found")
     names = [n for n, _ in list_scenes()]
     raise FileNotFoundError(f"no bundled scene named '{name_or_path}' (bundled: {', '.join(names)}) and no such .toml file")

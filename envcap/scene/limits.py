@@ -24,6 +24,21 @@ SIZE_LIMIT_M = 1.0e4
 ``setback``; window sizes; wall ``height``, ``tile``, ``thickness``.  Ten times the tallest
 building ever built; anything larger is not a city element."""
 
+MIN_SIZE_M = 0.01
+"""Smallest size of one element (m): window ``width``, ``height``, ``spacing``, ``floor_height``;
+building ``height``, ``depth``, ``gap_width``; wall ``height``, ``tile``, ``thickness``; ground
+``extent``, ``checker_extent``.  A centimeter is below a texel of any probe a few meters away;
+smaller values (``1e-300``) were accepted silently and built invisible or degenerate geometry
+(issue 20)."""
+
+MIN_STREET_WIDTH_M = 1.0
+"""Smallest street ``width`` (m, between the facade planes): the probe line runs in the middle and
+the evaluator samples within the facades; a narrower gap is not a street (``width = 1e-300`` was
+accepted and gave facade planes 5e-301 m from the probe line)."""
+
+MIN_STREET_LENGTH_M = 1.0
+"""Smallest street length (m): ``length``, ``end - start``, or ``p0`` to ``p1``."""
+
 MIN_PIECE_M = 0.5
 """Building pieces narrower than this (m, along the street) are dropped after clipping, so no
 building may be narrower: ``width`` of a listed building and the minimum of a ``random`` width."""

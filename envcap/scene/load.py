@@ -10,6 +10,21 @@ from envcap.scene.build import build_scene
 from envcap.scene.bundled import scene_path
 from envcap.scene.model import Scene
 from envcap.scene.parse import parse_scene, read_toml
+from envcap.scene.spec import SceneSpec
+
+
+def check_scene(name_or_path: str | Path) -> SceneSpec:
+    """Read and check a scene (a bundled name or a ``.toml`` path) without building it: the TOML,
+    every key and its range, the sky (its file read), as :func:`load_scene` does before building.
+    Same errors as :func:`load_scene`; meshes are read only when the scene is built."""
+    path = scene_path(name_or_path)
+    data = read_toml(path)
+    try:
+        return parse_scene(data, base_dir=path.parent.resolve(), default_name=path.stem, source=str(path))
+    except FileNotFoundError as exc:
+        raise FileNotFoundError(f"{path}: {exc}") from None
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
 
 
 def load_scene(name_or_path: str | Path) -> Scene:

@@ -37,6 +37,7 @@ from typing import Callable, Iterable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from envcap.core.checks import format_numbers
 from envcap.scene.limits import COORDINATE_LIMIT_M
 from envcap.scene.mesh_parts import component_labels, inward_parts, parts_meeting_box
 from envcap.scene.mesh_select import mesh_files
@@ -171,9 +172,9 @@ def import_meshes(
         notes += [f"{f.name}: {n}" for n in file_notes]
     parts = sum(p.parts for p in pieces)
     if crop is not None and parts == 0:
-        raise ValueError(f"{where}: the crop box {list(crop[0])} .. {list(crop[1])} meets none of the "
-                         f"{sum(p.cropped for p in pieces)} parts (the mesh spans {list(np.round(span_lo, 2))} .. "
-                         f"{list(np.round(span_hi, 2))} after the transform)")
+        raise ValueError(f"{where}: the crop box {format_numbers(crop[0])} .. {format_numbers(crop[1])} meets none of "
+                         f"the {sum(p.cropped for p in pieces)} parts (the mesh spans {format_numbers(np.round(span_lo, 2))} "
+                         f".. {format_numbers(np.round(span_hi, 2))} after the transform)")
     if not sum(p.tri.shape[0] for p in pieces):
         raise ValueError(f"mesh {where} has only degenerate (zero-area) triangles")
     y_lo = min(float(p.tri[..., 1].min()) for p in pieces if p.tri.shape[0])
@@ -217,7 +218,7 @@ def _prepare(surf: Surfaces, m4: NDArray[np.float64], where: str, scale: float, 
         reach = float(np.max(np.abs(tri)))
     if not reach <= COORDINATE_LIMIT_M:  # also NaN / inf (overflow)
         raise ValueError(f"{where}: vertices reach {reach:.10g} m after the import transform (scale {scale:g}, "
-                         f"offset {list(offset)}), beyond the coordinate limit of +-{COORDINATE_LIMIT_M:g} m; "
+                         f"offset {format_numbers(offset)}), beyond the coordinate limit of +-{COORDINATE_LIMIT_M:g} m; "
                          f"change scale or offset")
     span = (tri.min(axis=(0, 1)), tri.max(axis=(0, 1)))
     names = [name for name, _ in surf.sources]              # a file, or a Mitsuba shape's file

@@ -21,6 +21,8 @@ import fnmatch
 from pathlib import Path
 from typing import Sequence
 
+from envcap.core.input_path import require_file
+
 GLOB_SUFFIXES = (".glb", ".gltf", ".obj", ".ply", ".stl", ".off")
 """Mesh file suffixes (lower case, read through trimesh) that a ``glob`` picks up."""
 
@@ -36,8 +38,7 @@ def mesh_files(path: Path) -> list[Path]:
         if not files:
             raise ValueError(f"mesh directory {path} contains no .ply files")
         return files
-    if not path.is_file():
-        raise FileNotFoundError(f"mesh file {path} not found")
+    require_file(path, "mesh file", f"mesh file {path} not found")
     if path.suffix.lower() not in MESH_SUFFIXES:
         raise ValueError(f"mesh file {path}: unsupported type '{path.suffix}' (use one of {', '.join(MESH_SUFFIXES)})")
     return [path]

@@ -9,7 +9,12 @@ Read with the standard library's XML parser (``xml.etree.ElementTree``).  What i
   :mod:`envcap.scene.mesh_surfaces` for which reflectances are read; ``twosided`` is noted (envcap
   orients surfaces by the winding rule and lights the front side);
 * an ``area`` emitter inside a shape: its ``radiance`` rgb becomes the shape's emission;
-* ``<default name value>`` and ``$name`` substitution.
+* ``<default name value>`` and ``$name`` substitution;
+* ``<include filename="part.xml"/>``: the included scene's elements in its place (as Mitsuba
+  does), read from the main file's folder or below it only (a name that leads outside it, through
+  ``..`` or a link, is an error naming it), at most :data:`MAX_INCLUDE_DEPTH` deep and never in a
+  cycle; file names inside it are relative to the main file's folder, as Mitsuba resolves them.
+  (Before issue 20 an include was dropped without a word.)
 
 What is skipped, each reported once in ``Surfaces.notes``: top-level emitters (the sky and sun come
 from the scene's ``[sky]``), other shape types (``rectangle``, ``sphere``, ``serialized``, ...),
@@ -31,6 +36,8 @@ from PIL import Image
 from envcap.core.color import srgb_to_linear
 from envcap.scene.mesh_surfaces import Surfaces, one_line, read_mesh_surfaces, texture_image
 
+MAX_INCLUDE_DEPTH = 8
+"""Most nested ``<include>`` levels."""
 WRAPPERS = ("twosided", "mask", "bumpmap", "normalmap")
 """bsdf types that wrap another bsdf: its colour is the inner one's."""
 
@@ -106,6 +113,45 @@ def to_world_matrix(el: ET.Element | None, where: str) -> NDArray[np.float64]:
     return m
 
 
+def _read_root(path: Path, what: str) -> ET.Element:
+    try:
+        root = ET.parse(path).getroot()
+    except (ET.ParseError, OSError) as exc:
+        raise ValueError(f"cannot read {what} {path}: {one_line(exc)}") from None
+    if root.tag != "scene":
+        raise ValueError(f"{path}: not a Mitsuba scene (root element <{root.tag}>, expected <scene>)")
+    return root
+
+
+def _expand_includes(el: ET.Element, base: Path, chain: tuple[Path, ...]) -> None:
+    """Replace each ``<include filename>`` below ``el`` by the children of the scene it names (in
+    place, recursively; module docstring).  ``chain``: the files being read, the main one first."""
+    out: list[ET.Element] = []
+    for child in list(el):
+        if child.tag != "include":
+            _expand_includes(child, base, chain)
+            out.append(child)
+            continue
+        name = child.attrib.get("filename", "")
+        where = f"{chain[-1]}: <include filename=\"{name}\">"
+        if not name:
+            raise ValueError(f"{chain[-1]}: an <include> without a filename")
+        target = (base / name).resolve()
+        if not target.is_relative_to(base.resolve()):
+            raise ValueError(f"{where} leads outside the scene's folder {base} (to {target}); envcap reads "
+                             f"included files from that folder or below it only")
+        if target in chain:
+            raise ValueError(f"{where} includes a file that is already being read (a cycle)")
+        if len(chain) > MAX_INCLUDE_DEPTH:
+            raise ValueError(f"{where}: includes nested more than {MAX_INCLUDE_DEPTH} deep")
+        if not target.is_file():
+            raise ValueError(f"{where}: file {target} not found")
+        sub = _read_root(target, "included Mitsuba scene")
+        _expand_includes(sub, base, (*chain, target))
+        out.extend(sub)
+    el[:] = out
+
+
 def _substitute(root: ET.Element) -> None:
     """Apply ``<default name value>`` to every ``$name`` in attribute values (in place)."""
     defaults = {d.attrib["name"]: d.attrib.get("value", "") for d in root.iter("default") if "name" in d.attrib}
@@ -155,14 +201,10 @@ def iter_mitsuba_surfaces(path: Path, default_albedo: NDArray[np.float64], emiss
     it has prepared); what was skipped is appended to ``notes`` once the shapes are exhausted.
     ``ValueError`` naming the file and the shape on a parse error, a bad attribute, a missing
     shape file or texture, or a scene without such shapes."""
-    try:
-        root = ET.parse(path).getroot()
-    except (ET.ParseError, OSError) as exc:
-        raise ValueError(f"cannot read Mitsuba scene {path}: {one_line(exc)}") from None
-    if root.tag != "scene":
-        raise ValueError(f"{path}: not a Mitsuba scene (root element <{root.tag}>, expected <scene>)")
-    _substitute(root)
+    root = _read_root(path, "Mitsuba scene")
     base = path.parent
+    _expand_includes(root, base, (path.resolve(),))
+    _substitute(root)
     bsdfs = {b.attrib["id"]: b for b in root.findall("bsdf") if "id" in b.attrib}
     skipped: Counter[str] = Counter()
     bitmaps: dict[Path, NDArray[np.uint8]] = {}     # one texture per file, however many shapes use it

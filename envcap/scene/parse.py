@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from envcap.capture.effects import check_effects
+from envcap.core.checks import format_numbers
 from envcap.scene.model import Street
 from envcap.scene.spec import (
     BuildingSpec,
@@ -37,6 +38,9 @@ from envcap.scene.limits import (
     GROUND_EXTENT_LIMIT_M,
     MESH_SCALE_RANGE,
     MIN_PIECE_M,
+    MIN_SIZE_M,
+    MIN_STREET_LENGTH_M,
+    MIN_STREET_WIDTH_M,
     SEED_LIMIT,
     SIZE_LIMIT_M,
     SPAN_LIMIT_M,
@@ -147,7 +151,7 @@ def _parse_mesh(t: Table, base_dir: Path | None) -> MeshSpec:
         hi = crop_table.vector("max", 3, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
         crop_table.close()
         if not all(a < b for a, b in zip(lo, hi)):
-            raise ValueError(f"{t.where}.crop: min {list(lo)} must be below max {list(hi)} on every axis")
+            raise ValueError(f"{t.where}.crop: min {format_numbers(lo)} must be below max {format_numbers(hi)} on every axis")
         crop = (lo, hi)
     spec = MeshSpec(
         path=file,
@@ -181,10 +185,10 @@ def _strings(t: Table, key: str) -> tuple[str, ...]:
 
 def _parse_windows(t: Table) -> WindowsSpec:
     w = WindowsSpec(
-        width=t.number("width", 1.2, positive=True, max=SIZE_LIMIT_M),
-        height=t.number("height", 1.6, positive=True, max=SIZE_LIMIT_M),
-        spacing=t.number("spacing", 3.0, positive=True, max=SIZE_LIMIT_M),
-        floor_height=t.number("floor_height", 3.2, positive=True, max=SIZE_LIMIT_M),
+        width=t.number("width", 1.2, positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
+        height=t.number("height", 1.6, positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
+        spacing=t.number("spacing", 3.0, positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
+        floor_height=t.number("floor_height", 3.2, positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
         sill=t.number("sill", 0.9, min=0.0, max=SIZE_LIMIT_M),
         first_floor=t.integer("first_floor", 0, min=0, max=FIRST_FLOOR_LIMIT),
         top_margin=t.number("top_margin", 0.5, min=0.0, max=SIZE_LIMIT_M),
@@ -230,7 +234,7 @@ def _parse_street(t: Table, index: int) -> StreetSpec:
         axis, start, end, yaw, origin = _street_ends(t)
     else:
         axis, start, end = _street_along(t)
-    width = t.number("width", positive=True, max=SIZE_LIMIT_M)
+    width = t.number("width", positive=True, min=MIN_STREET_WIDTH_M, max=SIZE_LIMIT_M)
     cross = t.number("cross", 0.0, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
     _check_coordinates(t.where, "cross +- width/2", (cross - 0.5 * width, cross + 0.5 * width))
     probe_line = t.raw("probe_line", None)
@@ -270,7 +274,9 @@ def _street_ends(t: Table) -> tuple[str, float, float, float, tuple[float, float
     dx, dz = p1[0] - p0[0], p1[1] - p0[1]
     length = math.hypot(dx, dz)
     if not length > 0.0:
-        raise ValueError(f"{t.where}: p0 and p1 are the same point {list(p0)}: a street needs a length")
+        raise ValueError(f"{t.where}: p0 and p1 are the same point {format_numbers(p0)}: a street needs a length")
+    if length < MIN_STREET_LENGTH_M:
+        raise ValueError(f"{t.where}: p0 to p1 is {length:.3g} m; a street must be at least {MIN_STREET_LENGTH_M:g} m long")
     if length > SPAN_LIMIT_M:
         raise ValueError(f"{t.where}: p0 to p1 is {length:.10g} m, beyond the span limit of {SPAN_LIMIT_M:g} m")
     return "x", 0.0, length, math.degrees(math.atan2(dz, dx)), (p0[0], p0[1])
@@ -285,12 +291,15 @@ def _street_along(t: Table) -> tuple[str, float, float]:
         start = t.number("start", min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
         end = t.number("end", min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
     else:
-        length = t.number("length", positive=True, max=SPAN_LIMIT_M)
+        length = t.number("length", positive=True, min=MIN_STREET_LENGTH_M, max=SPAN_LIMIT_M)
         mid = t.number("along_center", 0.0, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M)
         start, end = mid - 0.5 * length, mid + 0.5 * length
         _check_coordinates(t.where, "along_center +- length/2", (start, end))
     if not end > start:
-        raise ValueError(f"{t.where}: end ({end}) must be larger than start ({start})")
+        raise ValueError(f"{t.where}: end ({end:g}) must be larger than start ({start:g})")
+    if end - start < MIN_STREET_LENGTH_M:
+        raise ValueError(f"{t.where}: the street is {end - start:.3g} m long (start {start:g}, end {end:g}); "
+                         f"a street must be at least {MIN_STREET_LENGTH_M:g} m long")
     return axis, start, end
 
 
@@ -338,8 +347,8 @@ def _parse_building(b: Table, facade: FacadeSpec) -> BuildingSpec:
         gap=b.number("gap", 0.0, min=0.0, max=SPAN_LIMIT_M),
         width=b.number("width", min=MIN_PIECE_M, max=SIZE_LIMIT_M),
         albedo=b.vector("albedo", 3, facade.albedo, min=0.0, max=1.0, gray=True),
-        height=b.number("height", positive=True, max=SIZE_LIMIT_M),
-        depth=b.number("depth", 12.0, positive=True, max=SIZE_LIMIT_M),
+        height=b.number("height", positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
+        depth=b.number("depth", 12.0, positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
         setback=b.number("setback", 0.0, min=0.0, max=SIZE_LIMIT_M),
         windows=b.boolean("windows", True),
     )
@@ -351,11 +360,11 @@ def _parse_random(r: Table) -> RandomBuildingsSpec:
     spec = RandomBuildingsSpec(
         count=r.integer("count", -1, min=0, max=BUILDING_LIMIT) if r.has("count") else None,
         width=r.range("width", min=MIN_PIECE_M, max=SIZE_LIMIT_M),
-        height=r.range("height", positive=True, max=SIZE_LIMIT_M),
-        depth=r.range("depth", (10.0, 15.0), positive=True, max=SIZE_LIMIT_M),
+        height=r.range("height", positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
+        depth=r.range("depth", (10.0, 15.0), positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
         setback=r.range("setback", (0.0, 0.0), min=0.0, max=SIZE_LIMIT_M),
         gap_probability=r.number("gap_probability", 0.0, min=0.0, max=1.0),
-        gap_width=r.range("gap_width", (2.0, 6.0), positive=True, max=SPAN_LIMIT_M),
+        gap_width=r.range("gap_width", (2.0, 6.0), positive=True, min=MIN_SIZE_M, max=SPAN_LIMIT_M),
     )
     r.close()
     return spec
@@ -363,11 +372,11 @@ def _parse_random(r: Table) -> RandomBuildingsSpec:
 
 def _parse_wall(t: Table, facade: FacadeSpec) -> WallSpec:
     spec = WallSpec(
-        height=t.number("height", positive=True, max=SIZE_LIMIT_M),
-        tile=t.number("tile", 2.0, positive=True, max=SIZE_LIMIT_M),
+        height=t.number("height", positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
+        tile=t.number("tile", 2.0, positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
         albedo=t.vector("albedo", 3, facade.albedo, min=0.0, max=1.0, gray=True),
         albedo2=t.vector("albedo2", 3, (0.1, 0.1, 0.1), min=0.0, max=1.0, gray=True),
-        thickness=t.number("thickness", 0.5, positive=True, max=SIZE_LIMIT_M),
+        thickness=t.number("thickness", 0.5, positive=True, min=MIN_SIZE_M, max=SIZE_LIMIT_M),
     )
     t.close()
     return spec
@@ -380,10 +389,10 @@ def _parse_ground(t: Table | None) -> GroundSpec | None:
         spec.close()
         return None
     albedo = spec.vector("albedo", 3, (0.18, 0.18, 0.18), min=0.0, max=1.0, gray=True)
-    extent = spec.number("extent", DEFAULT_GROUND_EXTENT, positive=True, max=GROUND_EXTENT_LIMIT_M)
+    extent = spec.number("extent", DEFAULT_GROUND_EXTENT, positive=True, min=MIN_SIZE_M, max=GROUND_EXTENT_LIMIT_M)
     center = spec.vector("center", 2, None, min=-COORDINATE_LIMIT_M, max=COORDINATE_LIMIT_M) if spec.has("center") else None
     checker = spec.number("checker", 0.0, min=0.0, max=GROUND_EXTENT_LIMIT_M)
     albedo2 = spec.vector("albedo2", 3, (0.08, 0.08, 0.08), min=0.0, max=1.0, gray=True)
-    checker_extent = spec.number("checker_extent", min(extent, 200.0), positive=True, max=GROUND_EXTENT_LIMIT_M)
+    checker_extent = spec.number("checker_extent", min(extent, 200.0), positive=True, min=MIN_SIZE_M, max=GROUND_EXTENT_LIMIT_M)
     spec.close()
     return GroundSpec(albedo, extent, center, checker, albedo2, checker_extent)

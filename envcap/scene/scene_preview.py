@@ -124,7 +124,7 @@ def save_previews(ctx: Any, scene: Scene, path: str | Path, width: int = 640, *,
         parts.append(render(ctx, scene, street_view_matrix(scene.streets[0], width / sh), (width, sh)))
     parts.append(render(ctx, scene, top, (width, th)))
     img = np.concatenate(parts, axis=0)
-    with atomic_output_file(path, keep_existing=foreign) as tmp:
+    with atomic_output_file(path, keep_existing=foreign, lock=True) as tmp:
         info = PngImagePlugin.PngInfo()
         info.add_text(*PNG_MARK)
         Image.fromarray(img).save(tmp, format="PNG", optimize=True, pnginfo=info)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from envcap.core.checks import format_number
 from envcap.scene.model import Scene
 
 
@@ -12,7 +13,7 @@ def street_segment(scene: Scene, length: float, center: float | None = None) -> 
     """A copy of ``scene`` whose streets are cut to ``length`` m around ``center`` (m along each
     street; default: each street's middle), for baking a short probe set; the geometry is unchanged."""
     if not (math.isfinite(length) and length > 0):
-        raise ValueError(f"segment length must be a positive number of meters, got {length!r}")
+        raise ValueError(f"segment length (evaluate --bake) must be a positive number of meters, got {format_number(length)}")
     streets = []
     for st in scene.streets:
         c = 0.5 * (st.start + st.end) if center is None else float(center)

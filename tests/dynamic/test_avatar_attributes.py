@@ -70,7 +70,7 @@ def test_cli_writes_and_guards(walker_file, tmp_path, capsys):
     assert main(["avatar", str(walker_file), "--out", str(foreign)]) == 2
     assert "not written by envcap" in capsys.readouterr().err and foreign.read_bytes() == b"not envcap's"
     assert main(["avatar", str(walker_file), "--out", str(tmp_path / "x.glb"), "--k", "9"]) == 2
-    assert "k must be" in capsys.readouterr().err and not (tmp_path / "x.glb").exists()
+    assert "k (--k) must be" in capsys.readouterr().err and not (tmp_path / "x.glb").exists()
     assert main(["avatar", str(tmp_path / "missing.glb"), "--out", str(tmp_path / "y.glb")]) == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.glb", "o"]  # nothing half-written
 

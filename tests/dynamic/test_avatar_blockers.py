@@ -111,9 +111,9 @@ def test_top_k_matches_brute_force_over_keyframes(reduce):
 def test_bad_arguments():
     av = avatar_from_gltf(walker_gltf())
     sp = fit_proxy_spheres(av)
-    with pytest.raises(ValueError, match="k must be"):
+    with pytest.raises(ValueError, match=r"k \(--k\) must be"):
         select_blockers(av, sp, k=5)
-    with pytest.raises(ValueError, match="reduce must be"):
+    with pytest.raises(ValueError, match=r"reduce \(--reduce\) must be"):
         select_blockers(av, sp, reduce="median")
     with pytest.raises(ValueError, match="exclude_weight"):
         select_blockers(av, sp, exclude_weight=float("nan"))
