@@ -29,6 +29,7 @@ side, the median over 1 m samples along the paired facade lines of the wall heig
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -268,16 +269,21 @@ def _crossing(a: DetectedStreet, b: DetectedStreet) -> float | None:
     return None
 
 
-def detect_streets(triangles: NDArray[np.float64], search: StreetSearch | None = None) -> list[DetectedStreet]:
+def detect_streets(triangles: NDArray[np.float64], search: StreetSearch | None = None,
+                   progress: Callable[[int, int], None] | None = None) -> list[DetectedStreet]:
     """Straight streets of a city mesh, ``triangles`` (T, 3, 3) world meters (see the module
-    docstring), named ``street_00``... by direction then position.  Raises ``ValueError`` if the
-    mesh has no wall at all."""
+    docstring), named ``street_00``... by direction then position.  ``progress(done, total)`` is
+    called after each street direction searched.  Raises ``ValueError`` if the mesh has no wall
+    at all."""
     search = search or StreetSearch()
     walls, angles, areas = wall_triangles(triangles, search.wall_tilt_deg)
     if not len(walls):
         raise ValueError("no walls found: the mesh has no near-vertical triangles (is up_axis right?)")
     streets: list[DetectedStreet] = []
-    for peak in street_directions(angles, areas, search.min_direction_share):
+    peaks = street_directions(angles, areas, search.min_direction_share)
+    for k, peak in enumerate(peaks):
+        if progress is not None and k:
+            progress(2 * k, 2 * len(peaks))
         for direction in (peak, peak + 90.0):
             direction %= 180.0
             a = np.radians(direction)
@@ -288,6 +294,8 @@ def detect_streets(triangles: NDArray[np.float64], search: StreetSearch | None =
                 p0, p1 = u0 * t + c * n, u1 * t + c * n
                 streets.append(DetectedStreet("", (float(p0[0]), float(p0[1])), (float(p1[0]), float(p1[1])),
                                               float(direction), (va - c, vb - c), (fa, fb), (ha, hb), ()))
+    if progress is not None:
+        progress(2 * len(peaks), 2 * len(peaks))
     streets.sort(key=lambda s: (round(s.angle_deg, 1), s.p0[0], s.p0[1]))
     named = [DetectedStreet(f"street_{i:02d}", s.p0, s.p1, s.angle_deg, s.facade_offsets, s.frontage, s.heights, ())
              for i, s in enumerate(streets)]
