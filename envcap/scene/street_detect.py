@@ -200,8 +200,9 @@ def _runs(samples: NDArray[np.float64], gap: float) -> list[tuple[float, float]]
     return [(float(s[i]), float(s[j])) for i, j in zip(starts, ends)]
 
 
-def _streets_along(lines: list[FacadeLine], direction_deg: float, search: StreetSearch) -> list[tuple[float, float, float, float, float, float, float, float]]:
-    """(u0, u1, v_a, v_b, frontage_a, frontage_b, height_a, height_b) per street along one direction."""
+def _streets_along(lines: list[FacadeLine], walls_uv: NDArray[np.float64], search: StreetSearch) -> list[tuple[float, float, float, float, float, float, float, float]]:
+    """(u0, u1, v_a, v_b, frontage_a, frontage_b, height_a, height_b) per street along one direction;
+    ``walls_uv`` (W, 4): every wall's u and v ranges in that direction's frame (see :func:`_extend`)."""
     plus = [ln for ln in lines if ln.facing == 1]
     minus = [ln for ln in lines if ln.facing == -1]
     if not plus or not minus:
@@ -237,20 +238,72 @@ def _streets_along(lines: list[FacadeLine], direction_deg: float, search: Street
     clusters = np.split(order, np.nonzero(np.diff(centre[order]) > search.centre_tol_m)[0] + 1)
     found = []
     for c in clusters:
+        runs = []                                                       # (ext. start, ext. end, u0, u1)
         for u0, u1 in _runs(arr[c, 0], search.max_gap_m):
             if u1 - u0 < search.min_length:
                 continue
             inside = c[(arr[c, 0] >= u0) & (arr[c, 0] <= u1)]
+            va = float(np.median([plus[int(k)].offset for k in arr[inside, 1]]))
+            vb = float(np.median([minus[int(k)].offset for k in arr[inside, 2]]))
+            covered = np.any([_covers(ln, u) for ln in plus if abs(ln.offset - va) < 0.3]
+                             + [_covers(ln, u) for ln in minus if abs(ln.offset - vb) < 0.3]
+                             + [np.zeros(u.size, bool)], axis=0)
+            runs.append((*_extend(u, covered, _blocked(walls_uv, va, vb, u), u0, u1, search.max_gap_m), u0, u1))
+        runs.sort()
+        groups: list[list[tuple[float, float, float, float]]] = []
+        for run in runs:                                                # extended runs that overlap: one street
+            if groups and run[0] <= max(r[1] for r in groups[-1]):
+                groups[-1].append(run)
+            else:
+                groups.append([run])
+        for group in groups:
+            e0, e1 = min(r[0] for r in group), max(r[1] for r in group)
+            keep = np.any([(arr[c, 0] >= r[2]) & (arr[c, 0] <= r[3]) for r in group], axis=0)
+            inside = c[keep]
             pi, mi = arr[inside, 1].astype(int), arr[inside, 2].astype(int)
             va = float(np.median([plus[k].offset for k in pi]))
             vb = float(np.median([minus[k].offset for k in mi]))
-            span = np.arange(u0, u1 + search.sample_m / 2, search.sample_m)
-            side_a = np.any([_covers(plus[k], span) for k in set(pi)], axis=0)
-            side_b = np.any([_covers(minus[k], span) for k in set(mi)], axis=0)
+            span = np.arange(e0, e1 + search.sample_m / 2, search.sample_m)
+            side_a = np.any([_covers(ln, span) for k, ln in enumerate(plus) if k in set(pi) or abs(ln.offset - va) < 0.3],
+                            axis=0)
+            side_b = np.any([_covers(ln, span) for k, ln in enumerate(minus) if k in set(mi) or abs(ln.offset - vb) < 0.3],
+                            axis=0)
             ha = float(np.median([plus[k].height for k in pi]))
             hb = float(np.median([minus[k].height for k in mi]))
-            found.append((u0, u1, va, vb, float(side_a.mean()), float(side_b.mean()), ha, hb))
+            found.append((e0, e1, va, vb, float(side_a.mean()), float(side_b.mean()), ha, hb))
     return found
+
+
+def _blocked(walls_uv: NDArray[np.float64], va: float, vb: float, u: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Samples ``u`` where a wall of any direction stands in the strip between the facade lines at
+    ``va`` < ``vb`` (more than 0.3 m from both); ``walls_uv`` (W, 4): each wall's u and v ranges."""
+    inside = (walls_uv[:, 3] > va + 0.3) & (walls_uv[:, 2] < vb - 0.3)
+    if not inside.any():
+        return np.zeros(u.size, bool)
+    iv = _merge(walls_uv[inside][:, :2], 0.0)
+    k = np.searchsorted(iv[:, 0], u, side="right") - 1
+    return (k >= 0) & (u <= iv[np.maximum(k, 0), 1])
+
+
+def _extend(u: NDArray[np.float64], covered: NDArray[np.bool_], blocked: NDArray[np.bool_], u0: float, u1: float,
+            max_gap: float) -> tuple[float, float]:
+    """A street's paired extent [u0, u1] extended at each end over the samples where one of its two
+    facade lines goes on (one-sided frontage: a missing building, a plaza on one side), bridging
+    gaps up to ``max_gap`` and stopping before anything that stands in the street."""
+    ends = []
+    for end, ahead in ((u0, u < u0), (u1, u > u1)):
+        cand, cov, blk = u[ahead], covered[ahead], blocked[ahead]
+        if end == u0:
+            cand, cov, blk = cand[::-1], cov[::-1], blk[::-1]
+        if blk.any():
+            first = int(np.argmax(blk))
+            cand, cov = cand[:first], cov[:first]
+        pts = cand[cov]
+        steps = np.abs(np.diff(np.r_[end, pts]))
+        far = np.nonzero(steps > max_gap)[0]
+        pts = pts[:far[0]] if far.size else pts
+        ends.append(float(pts[-1]) if pts.size else end)
+    return ends[0], ends[1]
 
 
 def _crossing(a: DetectedStreet, b: DetectedStreet) -> float | None:
@@ -289,7 +342,9 @@ def detect_streets(triangles: NDArray[np.float64], search: StreetSearch | None =
             a = np.radians(direction)
             t, n = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
             lines = facade_lines(walls, angles, areas, direction, search.parallel_tol_deg)
-            for u0, u1, va, vb, fa, fb, ha, hb in _streets_along(lines, direction, search):
+            plan_u, plan_v = walls[:, :, [0, 2]] @ t, walls[:, :, [0, 2]] @ n
+            walls_uv = np.stack([plan_u.min(axis=1), plan_u.max(axis=1), plan_v.min(axis=1), plan_v.max(axis=1)], axis=1)
+            for u0, u1, va, vb, fa, fb, ha, hb in _streets_along(lines, walls_uv, search):
                 c = (va + vb) / 2.0
                 p0, p1 = u0 * t + c * n, u1 * t + c * n
                 streets.append(DetectedStreet("", (float(p0[0]), float(p0[1])), (float(p1[0]), float(p1[1])),
