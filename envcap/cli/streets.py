@@ -170,7 +170,7 @@ def _build_source_scene(source: Source, say: Progress) -> tuple[SceneMesh, tuple
 def _detect(mesh: SceneMesh, search: StreetSearch, say: Progress) -> tuple[np.ndarray, list[DetectedStreet]]:
     tri = (mesh.positions.astype(np.float64) + mesh.origin)[mesh.indices.astype(np.int64)]
     say.begin("streets", f"searching {tri.shape[0]:,} triangles for facades that face each other")
-    streets = detect_streets(tri, search, progress=lambda done, total: say.tick(f"{done} of {total} directions"))
+    streets = detect_streets(tri, search, progress=say.tick)
     say.end(f"{len(streets)} found")
     return tri, streets
 
@@ -187,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
             mesh, center, raw = _build_source_scene(source, say)
         tri, streets = _detect(mesh, search, say)
         say.begin("ground", "sampling the mesh's ground under the streets' centre lines")
-        ground = street_ground(mesh, streets)
+        ground = street_ground(mesh, streets, progress=say.tick)
         say.end(f"a surface under {ground.share:.0%} of them")
         crossings = intersections(streets)
         if source.files is not None:

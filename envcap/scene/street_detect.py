@@ -34,6 +34,9 @@ from typing import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+Tick = Callable[[str], None]
+"""A progress callback: one short text of how far a search got."""
+
 
 @dataclass(frozen=True)
 class StreetSearch:
@@ -146,8 +149,9 @@ def _merge(intervals: NDArray[np.float64], gap: float) -> NDArray[np.float64]:
 
 
 def facade_lines(walls: NDArray[np.float64], angles_deg: NDArray[np.float64], areas: NDArray[np.float64],
-                 direction_deg: float, tol_deg: float = 1.0) -> list[FacadeLine]:
-    """Facade lines of the walls parallel to ``direction_deg`` (see step 3)."""
+                 direction_deg: float, tol_deg: float = 1.0, progress: Tick | None = None) -> list[FacadeLine]:
+    """Facade lines of the walls parallel to ``direction_deg`` (see step 3); ``progress(text)``
+    after each line."""
     a = np.radians(direction_deg)
     t = np.array([np.cos(a), np.sin(a)])
     n = np.array([-t[1], t[0]])
@@ -164,7 +168,9 @@ def facade_lines(walls: NDArray[np.float64], angles_deg: NDArray[np.float64], ar
         w = areas[sel]
         order = np.argsort(v)
         groups = np.split(order, np.nonzero(np.diff(v[order]) > 0.3)[0] + 1)
-        for g in groups:
+        for k, g in enumerate(groups):
+            if progress is not None:
+                progress(f"facade line {k + 1} of {len(groups)}")
             u_lo, u_hi = u[g].min(axis=1), u[g].max(axis=1)
             iv = _merge(np.stack([u_lo, u_hi], axis=1), 0.05)
             lines.append(FacadeLine(facing, float(np.average(v[g], weights=w[g])), iv,
@@ -200,7 +206,8 @@ def _runs(samples: NDArray[np.float64], gap: float) -> list[tuple[float, float]]
     return [(float(s[i]), float(s[j])) for i, j in zip(starts, ends)]
 
 
-def _streets_along(lines: list[FacadeLine], walls_uv: NDArray[np.float64], search: StreetSearch) -> list[tuple[float, float, float, float, float, float, float, float]]:
+def _streets_along(lines: list[FacadeLine], walls_uv: NDArray[np.float64], search: StreetSearch,
+                   progress: Tick | None = None) -> list[tuple[float, float, float, float, float, float, float, float]]:
     """(u0, u1, v_a, v_b, frontage_a, frontage_b, height_a, height_b) per street along one direction;
     ``walls_uv`` (W, 4): every wall's u and v ranges in that direction's frame (see :func:`_extend`)."""
     plus = [ln for ln in lines if ln.facing == 1]
@@ -217,7 +224,9 @@ def _streets_along(lines: list[FacadeLine], walls_uv: NDArray[np.float64], searc
     minus_index = {id(ln): k for k, ln in enumerate(minus)}
     plus_index = {id(ln): k for k, ln in enumerate(plus)}
     pairs: list[tuple[float, int, int]] = []                            # (u, plus idx, minus idx)
-    for ln in plus:
+    for k, ln in enumerate(plus):
+        if progress is not None:
+            progress(f"pairing facade {k + 1} of {len(plus)}")
         cov = _covers(ln, u)
         if not cov.any():
             continue
@@ -237,7 +246,9 @@ def _streets_along(lines: list[FacadeLine], walls_uv: NDArray[np.float64], searc
     order = np.argsort(centre)
     clusters = np.split(order, np.nonzero(np.diff(centre[order]) > search.centre_tol_m)[0] + 1)
     found = []
-    for c in clusters:
+    for k, c in enumerate(clusters):
+        if progress is not None:
+            progress(f"centre line {k + 1} of {len(clusters)}")
         runs = []                                                       # (ext. start, ext. end, u0, u1)
         for u0, u1 in _runs(arr[c, 0], search.max_gap_m):
             if u1 - u0 < search.min_length:
@@ -264,9 +275,10 @@ def _streets_along(lines: list[FacadeLine], walls_uv: NDArray[np.float64], searc
             va = float(np.median([plus[k].offset for k in pi]))
             vb = float(np.median([minus[k].offset for k in mi]))
             span = np.arange(e0, e1 + search.sample_m / 2, search.sample_m)
-            side_a = np.any([_covers(ln, span) for k, ln in enumerate(plus) if k in set(pi) or abs(ln.offset - va) < 0.3],
+            paired_a, paired_b = set(pi.tolist()), set(mi.tolist())
+            side_a = np.any([_covers(ln, span) for k, ln in enumerate(plus) if k in paired_a or abs(ln.offset - va) < 0.3],
                             axis=0)
-            side_b = np.any([_covers(ln, span) for k, ln in enumerate(minus) if k in set(mi) or abs(ln.offset - vb) < 0.3],
+            side_b = np.any([_covers(ln, span) for k, ln in enumerate(minus) if k in paired_b or abs(ln.offset - vb) < 0.3],
                             axis=0)
             ha = float(np.median([plus[k].height for k in pi]))
             hb = float(np.median([minus[k].height for k in mi]))
@@ -323,10 +335,10 @@ def _crossing(a: DetectedStreet, b: DetectedStreet) -> float | None:
 
 
 def detect_streets(triangles: NDArray[np.float64], search: StreetSearch | None = None,
-                   progress: Callable[[int, int], None] | None = None) -> list[DetectedStreet]:
+                   progress: Tick | None = None) -> list[DetectedStreet]:
     """Straight streets of a city mesh, ``triangles`` (T, 3, 3) world meters (see the module
-    docstring), named ``street_00``... by direction then position.  ``progress(done, total)`` is
-    called after each street direction searched.  Raises ``ValueError`` if the mesh has no wall
+    docstring), named ``street_00``... by direction then position.  ``progress(text)`` says how far
+    the search got (often: rate-limit it).  Raises ``ValueError`` if the mesh has no wall
     at all."""
     search = search or StreetSearch()
     walls, angles, areas = wall_triangles(triangles, search.wall_tilt_deg)
@@ -335,22 +347,20 @@ def detect_streets(triangles: NDArray[np.float64], search: StreetSearch | None =
     streets: list[DetectedStreet] = []
     peaks = street_directions(angles, areas, search.min_direction_share)
     for k, peak in enumerate(peaks):
-        if progress is not None and k:
-            progress(2 * k, 2 * len(peaks))
-        for direction in (peak, peak + 90.0):
+        for j, direction in enumerate((peak, peak + 90.0)):
+            where = f"direction {2 * k + j + 1} of {2 * len(peaks)} ({direction % 180.0:.1f} deg)"
+            tick = None if progress is None else (lambda text, where=where: progress(f"{where}: {text}"))
             direction %= 180.0
             a = np.radians(direction)
             t, n = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
-            lines = facade_lines(walls, angles, areas, direction, search.parallel_tol_deg)
+            lines = facade_lines(walls, angles, areas, direction, search.parallel_tol_deg, tick)
             plan_u, plan_v = walls[:, :, [0, 2]] @ t, walls[:, :, [0, 2]] @ n
             walls_uv = np.stack([plan_u.min(axis=1), plan_u.max(axis=1), plan_v.min(axis=1), plan_v.max(axis=1)], axis=1)
-            for u0, u1, va, vb, fa, fb, ha, hb in _streets_along(lines, walls_uv, search):
+            for u0, u1, va, vb, fa, fb, ha, hb in _streets_along(lines, walls_uv, search, tick):
                 c = (va + vb) / 2.0
                 p0, p1 = u0 * t + c * n, u1 * t + c * n
                 streets.append(DetectedStreet("", (float(p0[0]), float(p0[1])), (float(p1[0]), float(p1[1])),
                                               float(direction), (va - c, vb - c), (fa, fb), (ha, hb), ()))
-    if progress is not None:
-        progress(2 * len(peaks), 2 * len(peaks))
     streets.sort(key=lambda s: (round(s.angle_deg, 1), s.p0[0], s.p0[1]))
     named = [DetectedStreet(f"street_{i:02d}", s.p0, s.p1, s.angle_deg, s.facade_offsets, s.frontage, s.heights, ())
              for i, s in enumerate(streets)]

@@ -30,7 +30,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -71,14 +71,18 @@ class StreetGround:
         return self.share >= MESH_GROUND_SHARE
 
 
-def street_ground(mesh: SceneMesh, streets: Sequence[DetectedStreet]) -> StreetGround:
+def street_ground(mesh: SceneMesh, streets: Sequence[DetectedStreet],
+                  progress: Callable[[str], None] | None = None) -> StreetGround:
     """Sample ``mesh``'s highest up-facing surface (:class:`~envcap.scene.ground_height.GroundHeights`)
-    along each street's centre line.  ``mesh`` must not hold the default ground plane."""
+    along each street's centre line (``progress(text)`` after each street).  ``mesh`` must not
+    hold the default ground plane."""
     if not streets:
         return StreetGround(0.0, ())
     ground = GroundHeights(mesh)
     spans, found, total = [], 0, 0
-    for s in streets:
+    for k, s in enumerate(streets):
+        if progress is not None:
+            progress(f"street {k + 1} of {len(streets)}")
         t = np.linspace(0.0, 1.0, max(2, int(np.ceil(s.length / GROUND_STEP_M)) + 1))
         xz = np.asarray(s.p0) + t[:, None] * (np.asarray(s.p1) - np.asarray(s.p0))
         h = ground(xz)
