@@ -41,8 +41,9 @@ SPACING_RANGE_M = (0.5, 1000.0)
 """``--spacing`` (m): the map's probe dots along each street."""
 MIN_LENGTH_RANGE_M = (1.0, 100000.0)
 """``--min-length`` (m): at least the detection's 1 m sampling step."""
-PROGRESS_EVERY_S = 2.0
-"""A running stage says how far it got at most this often (s)."""
+PROGRESS_EVERY_S = (1.0, 10.0)
+"""A running stage says how far it got at most this often (s): on a terminal (one line, rewritten),
+elsewhere (a line each: logs, pipes)."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -80,16 +81,24 @@ def check_arguments(args: argparse.Namespace) -> StreetSearch:
 
 class Progress:
     """``progress: STAGE: ...`` lines on stderr (nothing when ``quiet``): one when a stage starts,
-    one when it ends with its seconds, and between them at most one per :data:`PROGRESS_EVERY_S`."""
+    one when it ends with its seconds, and between them how far it got, at most every
+    :data:`PROGRESS_EVERY_S` (on a terminal rewriting one line)."""
 
     def __init__(self, quiet: bool) -> None:
         self.quiet = quiet
+        self.tty = bool(getattr(sys.stderr, "isatty", lambda: False)())
+        self.every = PROGRESS_EVERY_S[0] if self.tty else PROGRESS_EVERY_S[1]
         self.stage = ""
         self.t0 = self.last = time.perf_counter()
 
-    def _say(self, text: str) -> None:
-        if not self.quiet:
-            print(f"{PREFIX}{self.stage}: {text}", file=sys.stderr, flush=True)
+    def _say(self, text: str, running: bool = False) -> None:
+        if self.quiet:
+            return
+        line = f"{PREFIX}{self.stage}: {text}"
+        if self.tty:
+            print(f"\r{line}\x1b[K", end="" if running else "\n", file=sys.stderr, flush=True)
+        else:
+            print(line, file=sys.stderr, flush=True)
 
     def begin(self, stage: str, text: str) -> None:
         self.stage, self.t0 = stage, time.perf_counter()
@@ -98,9 +107,9 @@ class Progress:
 
     def tick(self, text: str) -> None:
         now = time.perf_counter()
-        if now - self.last >= PROGRESS_EVERY_S:
+        if now - self.last >= self.every:
             self.last = now
-            self._say(f"{text} ({now - self.t0:.0f} s)")
+            self._say(f"{text} ({now - self.t0:.0f} s)", running=True)
 
     def end(self, text: str) -> None:
         self._say(f"{text} in {time.perf_counter() - self.t0:.1f} s")
