@@ -35,7 +35,7 @@ from envcap.scene.model import SceneMesh
 from envcap.scene.parse import parse_scene, read_toml
 from envcap.scene.street_detect import DetectedStreet, StreetSearch, detect_streets, intersections
 from envcap.scene.street_detect_figure import save_street_map
-from envcap.scene.streets_scene import mesh_scene_text, scene_scene_text, street_ground
+from envcap.scene.streets_scene import check_copyable, mesh_scene_text, scene_scene_text, street_ground
 
 SPACING_RANGE_M = (0.5, 1000.0)
 """``--spacing`` (m): the map's probe dots along each street."""
@@ -165,6 +165,7 @@ def _build_source_scene(source: Source, say: Progress) -> tuple[SceneMesh, tuple
     assert path is not None
     say.begin("import", f"building the geometry of {source.text}")
     raw = read_toml(path)
+    check_copyable(raw, source.text)
     try:
         spec = parse_scene(raw, base_dir=path.parent.resolve(), default_name=path.stem, source=str(path))
         scene = build_scene(replace(spec, ground=None))

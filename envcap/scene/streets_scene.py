@@ -213,6 +213,23 @@ def _copied_mesh(table: dict[str, Any], base: Path, out_dir: Path, where: str, s
     return f"# {where}: {source}'s {where}, {how}\n" + toml_table("[[mesh]]", t)
 
 
+def builds_buildings(raw: dict[str, Any]) -> bool:
+    """Whether the scene document ``raw`` has streets that build buildings or walls (``side_min`` /
+    ``side_max``): its geometry can then only be taken whole (``[[mesh]] scene = ...``)."""
+    return any(isinstance(s, dict) and ("side_min" in s or "side_max" in s) for s in raw.get("streets", []))
+
+
+def check_copyable(raw: dict[str, Any], label: str) -> None:
+    """``ValueError`` when the scene ``raw`` can be written neither way: its streets build buildings
+    (taken whole by ``scene = ...``) and it takes geometry from another scene itself (one level only)."""
+    meshes = raw.get("mesh", [])
+    meshes = [meshes] if isinstance(meshes, dict) else list(meshes)
+    if builds_buildings(raw) and any(isinstance(t, dict) and "scene" in t for t in meshes):
+        raise ValueError(f"{label}: its streets build buildings, which a written scene can only take with "
+                         f"[[mesh]] scene = ..., and it takes geometry from another scene itself (one level only): "
+                         f"give {label} its meshes directly")
+
+
 def scene_scene_text(source: str, path: Path, raw: dict[str, Any], out_dir: Path, streets: Sequence[DetectedStreet],
                      ground: StreetGround, ground_center: tuple[float, float], bundled: bool) -> str:
     """The scene of streets found in the scene ``source`` (a bundled name when ``bundled``, else a
@@ -222,8 +239,8 @@ def scene_scene_text(source: str, path: Path, raw: dict[str, Any], out_dir: Path
     label = source if bundled else toml_string(path.name)      # comments hold no raw control character
     meshes = raw.get("mesh", [])
     meshes = [meshes] if isinstance(meshes, dict) else list(meshes)
-    procedural = any(isinstance(s, dict) and ("side_min" in s or "side_max" in s) for s in raw.get("streets", []))
-    if procedural:
+    check_copyable(raw, label)
+    if builds_buildings(raw):
         ref = source if bundled else path_text(path, out_dir)
         blocks = [f"# mesh: the geometry {label} builds (its streets' buildings and walls exist only with those streets, "
                   f"so it is taken whole; not its ground or probes)\n" + toml_table("[[mesh]]", {"scene": ref})]

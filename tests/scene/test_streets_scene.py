@@ -182,3 +182,15 @@ def test_a_mesh_table_scene_key_takes_nothing_else_and_one_level(tmp_path: Path)
         load_scene(scene(f'[mesh]\nscene = "{inner.name}"\n'))
     alone = scene('[ground]\nenabled = false\n[mesh]\nscene = "canyon"\n')
     assert load_scene(alone).mesh.triangle_count == load_scene("canyon").mesh.triangle_count - 2   # canyon less its ground
+
+
+def test_a_scene_that_can_be_written_neither_way_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Buildings from its own streets (taken whole by ``scene = ...``) and geometry from another scene
+    (one level only): refused, nothing written."""
+    src = tmp_path / "two_levels.toml"
+    src.write_text('effects = []\n[sky]\ntype = "uniform"\nradiance = 1.0\n[[mesh]]\nscene = "canyon"\n'
+                   '[[streets]]\nname = "s"\naxis = "x"\nstart = 0.0\nend = 60.0\nwidth = 16.0\n'
+                   '[streets.side_min]\nrandom = { width = [12.0, 20.0], height = [10.0, 20.0] }\n')
+    assert main(["streets", str(src), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "one level only" in err and not (tmp_path / "out").exists()
