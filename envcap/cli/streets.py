@@ -30,7 +30,7 @@ from envcap.probeset.progress import PREFIX
 from envcap.scene import build_scene, scene_path
 from envcap.scene.limits import ANGLE_LIMIT_DEG, COORDINATE_LIMIT_M
 from envcap.scene.mesh_import import WINDING_MODES, import_meshes
-from envcap.scene.mesh_select import mesh_files
+from envcap.scene.mesh_select import MESH_SUFFIXES, mesh_files
 from envcap.scene.model import SceneMesh
 from envcap.scene.parse import parse_scene, read_toml
 from envcap.scene.street_detect import DetectedStreet, StreetSearch, detect_streets, intersections
@@ -128,8 +128,8 @@ class Source:
     def open(cls, text: str) -> "Source":
         """Which input ``text`` names (cheap: no mesh is read); ``FileNotFoundError`` / ``ValueError``."""
         path = Path(text)
-        if path.exists() and path.suffix.lower() != ".toml":
-            return cls(text, files=mesh_files(path))
+        if path.suffix.lower() in MESH_SUFFIXES or (path.exists() and path.suffix.lower() != ".toml"):
+            return cls(text, files=mesh_files(path))          # a missing mesh file: "mesh file ... not found"
         scene = scene_path(text)
         return cls(text, scene=scene, bundled=scene == city_scenes_dir() / f"{text}.toml")
 

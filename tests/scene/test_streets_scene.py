@@ -141,6 +141,8 @@ def test_bad_options_are_one_line_naming_the_option_before_anything(tmp_path: Pa
         err = capsys.readouterr().err
         assert err.startswith(f"envcap: error: {option} must be") and err.count("\n") == 1, err
         assert "StreetSearch" not in err and not out.exists()
+    assert main(["streets", str(tmp_path / "missing.ply"), "--out", str(out)]) == 2
+    assert "mesh file" in capsys.readouterr().err and not out.exists()
 
 
 def test_out_is_claimed_before_the_mesh_is_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
