@@ -13,17 +13,20 @@ buildings but gets none prints ``envcap: warning: ...`` on stderr, naming the si
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from envcap.scene.bundled import scene_path
 from envcap.scene.clearing import GroundRects, clear_pieces, roadways
 from envcap.scene.estimate import check_geometry_budget
 from envcap.scene.geometry import MeshBuilder
+from envcap.scene.ground_overlap import ground_overlap, ground_overlap_warning
 from envcap.scene.mesh_import import import_meshes
 from envcap.scene.mesh_select import select_mesh_files
 from envcap.scene.model import Scene, SceneMesh, Street
+from envcap.scene.parse import parse_scene, read_toml
 from envcap.scene.spec import (
     BuildingSpec,
     GroundSpec,
@@ -62,10 +65,18 @@ def build_scene(spec: SceneSpec) -> Scene:
 
     for index, mesh_spec in enumerate(spec.meshes):
         where = "mesh" if len(spec.meshes) == 1 else f"mesh[{index}]"
-        parts.append(_import(mesh_spec, [s.street for s in spec.streets], spec.source, where))
+        if mesh_spec.scene is not None:
+            parts.append(_scene_geometry(mesh_spec, where))
+        else:
+            parts.append(_import(mesh_spec, [s.street for s in spec.streets], spec.source, where))
+        if spec.ground is not None:
+            warning = ground_overlap_warning(ground_overlap(parts[-1]), f"{spec.source}: {where}" if spec.source else where)
+            if warning:
+                print(f"envcap: warning: {warning}", file=sys.stderr)
 
+    center = ground_center(spec, parts)
     if spec.ground is not None:
-        _build_ground(builder, spec.ground, spec.streets, parts)
+        _build_ground(builder, spec.ground, center)
     mesh = SceneMesh.concatenate([builder.build(), *parts]) if parts else builder.build()
     return Scene(
         name=spec.name,
@@ -74,9 +85,35 @@ def build_scene(spec: SceneSpec) -> Scene:
         sky=spec.sky,
         effects=spec.effects,
         description=spec.description,
-        meta=dict(stats, source=spec.source),
+        meta=dict(stats, source=spec.source, ground_center=center),
         shadows=spec.shadows,
     )
+
+
+def _scene_geometry(m: MeshSpec, table: str) -> SceneMesh:
+    """A mesh table ``scene = ...``: the geometry that scene builds (buildings, walls, meshes), without
+    its ground.  The scene named must not itself take another scene's geometry (one level)."""
+    name = m.scene or ""
+    p = Path(name)
+    if p.suffix.lower() == ".toml" or len(p.parts) > 1 or p.is_absolute():
+        path = (m.base_dir or Path.cwd()) / p
+        if not path.is_file():
+            raise FileNotFoundError(f"{table}.scene: scene file {path} not found")
+    else:
+        try:
+            path = scene_path(name)
+        except FileNotFoundError as exc:
+            raise FileNotFoundError(f"{table}.scene: {exc}") from None
+    try:
+        spec = parse_scene(read_toml(path), base_dir=path.parent.resolve(), default_name=path.stem, source=str(path))
+        if any(ms.scene is not None for ms in spec.meshes):
+            raise ValueError("it takes its own geometry from another scene: only one level is allowed")
+        mesh = build_scene(replace(spec, ground=None)).mesh
+    except (FileNotFoundError, ValueError) as exc:
+        raise type(exc)(f"{table}.scene {name!r}: {exc}") from None
+    if mesh.triangle_count == 0:
+        raise ValueError(f"{table}.scene {name!r}: that scene builds no geometry (no buildings, walls or meshes)")
+    return mesh
 
 
 def _import(m: MeshSpec, streets: list[Street], source: str, table: str = "mesh") -> SceneMesh:
@@ -276,18 +313,24 @@ def _tile_edges(lo: float, hi: float, tile: float) -> np.ndarray:
     return e
 
 
-def _build_ground(builder: MeshBuilder, g: GroundSpec, streets: tuple[StreetSpec, ...], parts: list[SceneMesh]) -> None:
-    if g.center is None:
-        pts = []
-        for s in streets:
-            pts += [np.array([x, 0.0, z]) for x, z in s.street.plan_corners()]  # world, framed streets too
-        for m in parts:
-            if m.positions.size:
-                pts += list(m.world_bounds())
-        bb = np.array(pts) if pts else np.zeros((1, 3))
-        cx, cz = 0.5 * (bb.min(0) + bb.max(0))[[0, 2]]
-    else:
-        cx, cz = g.center
+def ground_center(spec: SceneSpec, parts: list[SceneMesh]) -> tuple[float, float]:
+    """Plan centre (x, z), m, of the scene's ground quad: ``[ground] center``, else the middle of the
+    box of the streets' corners and the imported meshes ``parts`` (procedural buildings left out)."""
+    if spec.ground is not None and spec.ground.center is not None:
+        return (float(spec.ground.center[0]), float(spec.ground.center[1]))
+    pts = []
+    for s in spec.streets:
+        pts += [np.array([x, 0.0, z]) for x, z in s.street.plan_corners()]  # world, framed streets too
+    for m in parts:
+        if m.positions.size:
+            pts += list(m.world_bounds())
+    bb = np.array(pts) if pts else np.zeros((1, 3))
+    cx, cz = 0.5 * (bb.min(0) + bb.max(0))[[0, 2]]
+    return (float(cx), float(cz))
+
+
+def _build_ground(builder: MeshBuilder, g: GroundSpec, center: tuple[float, float]) -> None:
+    cx, cz = center
     h = 0.5 * g.extent
     if g.checker <= 0:
         builder.add_rects(1, 1, 0.0, (cx - h, 0, cz - h), (cx + h, 0, cz + h), g.albedo)

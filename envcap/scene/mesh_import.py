@@ -130,6 +130,7 @@ def import_meshes(
     where: str = "mesh",
     emission_scale: float = 100.0,
     crop_by: str = "part",
+    progress: Callable[[str, int], None] | None = None,
 ) -> tuple[SceneMesh, ImportReport]:
     """Load mesh ``files`` (concatenated, in order) as one flat-shaded SceneMesh, and what was done.
 
@@ -141,7 +142,8 @@ def import_meshes(
     with ``"triangle"`` the triangles that meet it (terrain: a triangle is kept when its bounding
     box meets the crop box).  ``winding``: one of
     :data:`WINDING_MODES`; ``streets`` tell which way a facade sheet (a part enclosing no volume)
-    should face (:func:`envcap.scene.mesh_parts.inward_parts`).  Raises ``FileNotFoundError`` /
+    should face (:func:`envcap.scene.mesh_parts.inward_parts`).  ``progress(name, triangles)`` is
+    called after each file (each shape of a Mitsuba XML) is read.  Raises ``FileNotFoundError`` /
     ``ValueError`` (one line naming the file or ``where``; also for vertices past
     :data:`~envcap.scene.limits.COORDINATE_LIMIT_M`, or a crop that keeps nothing).
     """
@@ -168,6 +170,8 @@ def import_meshes(
             piece = _prepare(surf, m4, where, scale, offset, crop, crop_by, winding, streets)
             span_lo, span_hi = np.minimum(span_lo, piece.span[0]), np.maximum(span_hi, piece.span[1])
             pieces.append(piece)
+            if progress is not None:
+                progress(surf.sources[0][0] if surf.sources else f.name, int(piece.tri.shape[0]))
             del surf
         notes += [f"{f.name}: {n}" for n in file_notes]
     parts = sum(p.parts for p in pieces)

@@ -135,8 +135,10 @@ def _parse_sky(v: Any, base_dir: Path | None) -> SkySpec:
 def _parse_mesh(t: Table, base_dir: Path | None) -> MeshSpec:
     """A scene's ``[mesh]`` table, or one of its ``[[mesh]]`` tables (keys: file, files, glob,
     include, exclude, up_axis, rotation_deg, offset, scale, albedo, winding, crop, crop_by,
-    emission_scale); at least one of file, files, glob."""
+    emission_scale); at least one of file, files, glob; or only ``scene`` (another scene's geometry)."""
     base = base_dir if base_dir is not None else Path.cwd()
+    if t.has("scene"):
+        return _parse_scene_mesh(t, base)
     file = t.raw("file", None)
     if file is not None:
         file = base / Path(t.string("file"))
@@ -172,6 +174,21 @@ def _parse_mesh(t: Table, base_dir: Path | None) -> MeshSpec:
     )
     t.close()
     return spec
+
+
+def _parse_scene_mesh(t: Table, base: Path) -> MeshSpec:
+    """A mesh table ``scene = "NAME"`` (or a ``.toml`` path relative to ``base``): that scene's whole
+    geometry, taken as it builds it; no other key (a transform or crop would change what it is)."""
+    scene = t.string("scene")
+    if not scene.strip():
+        raise ValueError(f"{t.where}.scene: expected a bundled scene name or a .toml path, got an empty string")
+    others = sorted(k for k in t.data if k != "scene")
+    if others:
+        raise ValueError(f"{t.where}: 'scene' takes another scene's geometry as it is built; it takes no other key "
+                         f"(also has {', '.join(others)})")
+    t.close()
+    return MeshSpec(path=None, up_axis="y", rotation_deg=0.0, offset=(0.0, 0.0, 0.0), scale=1.0,
+                    albedo=(0.5, 0.5, 0.5), base_dir=base, scene=scene)
 
 
 def _strings(t: Table, key: str) -> tuple[str, ...]:

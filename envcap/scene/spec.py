@@ -159,6 +159,10 @@ class MeshSpec:
     the triangles that meet it (terrain)."""
     emission_scale: float = 100.0
     """Radiance (sky units) per unit of a file's emissive factor (glTF ``emissiveFactor``, MTL ``Ke``)."""
+    scene: str | None = None
+    """``scene = "NAME"`` (a bundled scene) or a ``.toml`` path (relative to ``base_dir``): instead of
+    files, the whole geometry that scene builds (its buildings, walls and meshes; not its ground, sky
+    or probes).  The other fields are then unused."""
 
 
 @dataclass(frozen=True)

@@ -29,9 +29,13 @@ side, the median over 1 m samples along the paired facade lines of the wall heig
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from numpy.typing import NDArray
+
+Tick = Callable[[str], None]
+"""A progress callback: one short text of how far a search got."""
 
 
 @dataclass(frozen=True)
@@ -145,8 +149,9 @@ def _merge(intervals: NDArray[np.float64], gap: float) -> NDArray[np.float64]:
 
 
 def facade_lines(walls: NDArray[np.float64], angles_deg: NDArray[np.float64], areas: NDArray[np.float64],
-                 direction_deg: float, tol_deg: float = 1.0) -> list[FacadeLine]:
-    """Facade lines of the walls parallel to ``direction_deg`` (see step 3)."""
+                 direction_deg: float, tol_deg: float = 1.0, progress: Tick | None = None) -> list[FacadeLine]:
+    """Facade lines of the walls parallel to ``direction_deg`` (see step 3); ``progress(text)``
+    after each line."""
     a = np.radians(direction_deg)
     t = np.array([np.cos(a), np.sin(a)])
     n = np.array([-t[1], t[0]])
@@ -163,7 +168,9 @@ def facade_lines(walls: NDArray[np.float64], angles_deg: NDArray[np.float64], ar
         w = areas[sel]
         order = np.argsort(v)
         groups = np.split(order, np.nonzero(np.diff(v[order]) > 0.3)[0] + 1)
-        for g in groups:
+        for k, g in enumerate(groups):
+            if progress is not None:
+                progress(f"facade line {k + 1} of {len(groups)}")
             u_lo, u_hi = u[g].min(axis=1), u[g].max(axis=1)
             iv = _merge(np.stack([u_lo, u_hi], axis=1), 0.05)
             lines.append(FacadeLine(facing, float(np.average(v[g], weights=w[g])), iv,
@@ -199,8 +206,10 @@ def _runs(samples: NDArray[np.float64], gap: float) -> list[tuple[float, float]]
     return [(float(s[i]), float(s[j])) for i, j in zip(starts, ends)]
 
 
-def _streets_along(lines: list[FacadeLine], direction_deg: float, search: StreetSearch) -> list[tuple[float, float, float, float, float, float, float, float]]:
-    """(u0, u1, v_a, v_b, frontage_a, frontage_b, height_a, height_b) per street along one direction."""
+def _streets_along(lines: list[FacadeLine], walls_uv: NDArray[np.float64], search: StreetSearch,
+                   progress: Tick | None = None) -> list[tuple[float, float, float, float, float, float, float, float]]:
+    """(u0, u1, v_a, v_b, frontage_a, frontage_b, height_a, height_b) per street along one direction;
+    ``walls_uv`` (W, 4): every wall's u and v ranges in that direction's frame (see :func:`_extend`)."""
     plus = [ln for ln in lines if ln.facing == 1]
     minus = [ln for ln in lines if ln.facing == -1]
     if not plus or not minus:
@@ -215,7 +224,9 @@ def _streets_along(lines: list[FacadeLine], direction_deg: float, search: Street
     minus_index = {id(ln): k for k, ln in enumerate(minus)}
     plus_index = {id(ln): k for k, ln in enumerate(plus)}
     pairs: list[tuple[float, int, int]] = []                            # (u, plus idx, minus idx)
-    for ln in plus:
+    for k, ln in enumerate(plus):
+        if progress is not None:
+            progress(f"pairing facade {k + 1} of {len(plus)}")
         cov = _covers(ln, u)
         if not cov.any():
             continue
@@ -235,21 +246,76 @@ def _streets_along(lines: list[FacadeLine], direction_deg: float, search: Street
     order = np.argsort(centre)
     clusters = np.split(order, np.nonzero(np.diff(centre[order]) > search.centre_tol_m)[0] + 1)
     found = []
-    for c in clusters:
+    for k, c in enumerate(clusters):
+        if progress is not None:
+            progress(f"centre line {k + 1} of {len(clusters)}")
+        runs = []                                                       # (ext. start, ext. end, u0, u1)
         for u0, u1 in _runs(arr[c, 0], search.max_gap_m):
             if u1 - u0 < search.min_length:
                 continue
             inside = c[(arr[c, 0] >= u0) & (arr[c, 0] <= u1)]
+            va = float(np.median([plus[int(k)].offset for k in arr[inside, 1]]))
+            vb = float(np.median([minus[int(k)].offset for k in arr[inside, 2]]))
+            covered = np.any([_covers(ln, u) for ln in plus if abs(ln.offset - va) < 0.3]
+                             + [_covers(ln, u) for ln in minus if abs(ln.offset - vb) < 0.3]
+                             + [np.zeros(u.size, bool)], axis=0)
+            runs.append((*_extend(u, covered, _blocked(walls_uv, va, vb, u), u0, u1, search.max_gap_m), u0, u1))
+        runs.sort()
+        groups: list[list[tuple[float, float, float, float]]] = []
+        for run in runs:                                                # extended runs that overlap: one street
+            if groups and run[0] <= max(r[1] for r in groups[-1]):
+                groups[-1].append(run)
+            else:
+                groups.append([run])
+        for group in groups:
+            e0, e1 = min(r[0] for r in group), max(r[1] for r in group)
+            keep = np.any([(arr[c, 0] >= r[2]) & (arr[c, 0] <= r[3]) for r in group], axis=0)
+            inside = c[keep]
             pi, mi = arr[inside, 1].astype(int), arr[inside, 2].astype(int)
             va = float(np.median([plus[k].offset for k in pi]))
             vb = float(np.median([minus[k].offset for k in mi]))
-            span = np.arange(u0, u1 + search.sample_m / 2, search.sample_m)
-            side_a = np.any([_covers(plus[k], span) for k in set(pi)], axis=0)
-            side_b = np.any([_covers(minus[k], span) for k in set(mi)], axis=0)
+            span = np.arange(e0, e1 + search.sample_m / 2, search.sample_m)
+            paired_a, paired_b = set(pi.tolist()), set(mi.tolist())
+            side_a = np.any([_covers(ln, span) for k, ln in enumerate(plus) if k in paired_a or abs(ln.offset - va) < 0.3],
+                            axis=0)
+            side_b = np.any([_covers(ln, span) for k, ln in enumerate(minus) if k in paired_b or abs(ln.offset - vb) < 0.3],
+                            axis=0)
             ha = float(np.median([plus[k].height for k in pi]))
             hb = float(np.median([minus[k].height for k in mi]))
-            found.append((u0, u1, va, vb, float(side_a.mean()), float(side_b.mean()), ha, hb))
+            found.append((e0, e1, va, vb, float(side_a.mean()), float(side_b.mean()), ha, hb))
     return found
+
+
+def _blocked(walls_uv: NDArray[np.float64], va: float, vb: float, u: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Samples ``u`` where a wall of any direction stands in the strip between the facade lines at
+    ``va`` < ``vb`` (more than 0.3 m from both); ``walls_uv`` (W, 4): each wall's u and v ranges."""
+    inside = (walls_uv[:, 3] > va + 0.3) & (walls_uv[:, 2] < vb - 0.3)
+    if not inside.any():
+        return np.zeros(u.size, bool)
+    iv = _merge(walls_uv[inside][:, :2], 0.0)
+    k = np.searchsorted(iv[:, 0], u, side="right") - 1
+    return (k >= 0) & (u <= iv[np.maximum(k, 0), 1])
+
+
+def _extend(u: NDArray[np.float64], covered: NDArray[np.bool_], blocked: NDArray[np.bool_], u0: float, u1: float,
+            max_gap: float) -> tuple[float, float]:
+    """A street's paired extent [u0, u1] extended at each end over the samples where one of its two
+    facade lines goes on (one-sided frontage: a missing building, a plaza on one side), bridging
+    gaps up to ``max_gap`` and stopping before anything that stands in the street."""
+    ends = []
+    for end, ahead in ((u0, u < u0), (u1, u > u1)):
+        cand, cov, blk = u[ahead], covered[ahead], blocked[ahead]
+        if end == u0:
+            cand, cov, blk = cand[::-1], cov[::-1], blk[::-1]
+        if blk.any():
+            first = int(np.argmax(blk))
+            cand, cov = cand[:first], cov[:first]
+        pts = cand[cov]
+        steps = np.abs(np.diff(np.r_[end, pts]))
+        far = np.nonzero(steps > max_gap)[0]
+        pts = pts[:far[0]] if far.size else pts
+        ends.append(float(pts[-1]) if pts.size else end)
+    return ends[0], ends[1]
 
 
 def _crossing(a: DetectedStreet, b: DetectedStreet) -> float | None:
@@ -268,22 +334,29 @@ def _crossing(a: DetectedStreet, b: DetectedStreet) -> float | None:
     return None
 
 
-def detect_streets(triangles: NDArray[np.float64], search: StreetSearch | None = None) -> list[DetectedStreet]:
+def detect_streets(triangles: NDArray[np.float64], search: StreetSearch | None = None,
+                   progress: Tick | None = None) -> list[DetectedStreet]:
     """Straight streets of a city mesh, ``triangles`` (T, 3, 3) world meters (see the module
-    docstring), named ``street_00``... by direction then position.  Raises ``ValueError`` if the
-    mesh has no wall at all."""
+    docstring), named ``street_00``... by direction then position.  ``progress(text)`` says how far
+    the search got (often: rate-limit it).  Raises ``ValueError`` if the mesh has no wall
+    at all."""
     search = search or StreetSearch()
     walls, angles, areas = wall_triangles(triangles, search.wall_tilt_deg)
     if not len(walls):
         raise ValueError("no walls found: the mesh has no near-vertical triangles (is up_axis right?)")
     streets: list[DetectedStreet] = []
-    for peak in street_directions(angles, areas, search.min_direction_share):
-        for direction in (peak, peak + 90.0):
+    peaks = street_directions(angles, areas, search.min_direction_share)
+    for k, peak in enumerate(peaks):
+        for j, direction in enumerate((peak, peak + 90.0)):
+            where = f"direction {2 * k + j + 1} of {2 * len(peaks)} ({direction % 180.0:.1f} deg)"
+            tick = None if progress is None else (lambda text, where=where: progress(f"{where}: {text}"))
             direction %= 180.0
             a = np.radians(direction)
             t, n = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
-            lines = facade_lines(walls, angles, areas, direction, search.parallel_tol_deg)
-            for u0, u1, va, vb, fa, fb, ha, hb in _streets_along(lines, direction, search):
+            lines = facade_lines(walls, angles, areas, direction, search.parallel_tol_deg, tick)
+            plan_u, plan_v = walls[:, :, [0, 2]] @ t, walls[:, :, [0, 2]] @ n
+            walls_uv = np.stack([plan_u.min(axis=1), plan_u.max(axis=1), plan_v.min(axis=1), plan_v.max(axis=1)], axis=1)
+            for u0, u1, va, vb, fa, fb, ha, hb in _streets_along(lines, walls_uv, search, tick):
                 c = (va + vb) / 2.0
                 p0, p1 = u0 * t + c * n, u1 * t + c * n
                 streets.append(DetectedStreet("", (float(p0[0]), float(p0[1])), (float(p1[0]), float(p1[1])),

@@ -50,8 +50,8 @@ def save_street_map(triangles: NDArray[np.float64], streets: list[DetectedStreet
         mid = p0 + 0.3 * (p1 - p0)   # not the middle: crossings are often there
         ax.annotate(f"{s.name}\n{s.angle_deg:.1f}°, {s.width:.1f} m", mid, fontsize=7, color="navy", ha="center", va="center",
                     bbox=dict(boxstyle="round,pad=0.15", fc="white", alpha=0.75, lw=0))
-    for x, z in intersections(streets):
-        ax.plot(x, z, "x", color="tab:red", markersize=6)
+    crossings = np.array(intersections(streets)).reshape(-1, 2)
+    ax.plot(crossings[:, 0], crossings[:, 1], "x", color="tab:red", markersize=6, linestyle="none")
     lo, hi = plan.reshape(-1, 2).min(axis=0) - 10, plan.reshape(-1, 2).max(axis=0) + 10
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(hi[1], lo[1])

@@ -56,7 +56,7 @@ def test_every_street_of_the_generated_city_is_found(city_triangles: tuple[np.nd
         assert s.width == pytest.approx(t["width"], abs=0.5)
         assert sorted(abs(o) for o in s.facade_offsets) == pytest.approx([t["width"] / 2] * 2, abs=0.5)
         overlap = min(s.length, t["length"]) / t["length"]
-        assert overlap > 0.75, t["name"]
+        assert overlap > 0.98, t["name"]        # one-sided stretches included (the street goes on there)
         matched.add(s.name)
     assert matched == {s.name for s in found}, "a street was found that the city does not have"
     # 2 x 3 grid crossings; none in the irregular district (its streets stop short of the plaza)
