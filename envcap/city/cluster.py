@@ -9,7 +9,10 @@ each call at most its timeout (:meth:`ClusterSession.call`) and cancels it past 
 thread never blocks inside Dask, so SIGINT / SIGTERM reach it at once, and :meth:`close` shuts
 the cluster down: the ``LocalCluster``'s worker processes are stopped (killed, if they do not
 stop in time), and a worker process whose client dies unannounced (SIGKILL) exits by itself
-(Dask's nanny pipe).
+(Dask's nanny pipe).  Local worker processes are started while this process ignores SIGINT
+(the few milliseconds until they exist), so they ignore it for life: the Ctrl-C a terminal sends
+to the whole process group acts on the client only, which stops them, instead of making each
+worker print a ``KeyboardInterrupt`` traceback.
 
 Before any Dask call, an address is checked (:func:`check_address`: scheme, host, port 1-65535)
 and, for TCP, a plain connection is tried (:func:`_reachable`): an empty address, port 99999 or a
@@ -29,8 +32,10 @@ import logging
 import math
 import multiprocessing
 import os
+import signal
 import socket
 import threading
+import time
 from collections.abc import Awaitable, Callable
 from typing import Any, TypeVar
 
@@ -52,7 +57,9 @@ class ClusterError(RuntimeError):
 def one_line(exc: BaseException) -> str:
     """``Type: message`` of ``exc`` on one line (Dask messages may span lines)."""
     text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    name = type(exc).__name__
+    name = f"{type(exc).__module__}.{name}" if name.islower() else name      # struct.error, not "error"
+    return f"{name}: {text}" if text else name
 
 
 def check_timeout(timeout_s: float) -> float:
@@ -109,6 +116,19 @@ def _reachable(address: str, timeout_s: float) -> None:
         raise ClusterError(f"no Dask scheduler at {address}: no answer in {timeout_s:g} s (--cluster-timeout)") from None
     except OSError as exc:
         raise ClusterError(f"no Dask scheduler at {address}: {exc.strerror or one_line(exc)}") from None
+
+
+def _ignoring_sigint() -> Any:
+    """Ignore SIGINT in this process (main thread only; else None) and return the handler to put
+    back.  A process started meanwhile inherits the ignored SIGINT and keeps it for life."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _restore_sigint(previous: Any) -> None:
+    if previous is not None:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _ignore(loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
@@ -223,9 +243,18 @@ class ClusterSession:
         # about the semaphores of workers stopped mid-bake, after our one line; it removes them anyway
         old = os.environ.get("PYTHONWARNINGS")
         os.environ["PYTHONWARNINGS"] = ",".join(filter(None, [old, TRACKER_WARNING]))
+        spawning = _ignoring_sigint()
         try:
-            self.call(start, f"starting {workers} local Dask worker(s)", max(60.0, self.timeout_s) + 10.0 * workers)
+            fut = self.start(start)
+            while spawning is not None and not fut.done():       # until every worker process exists
+                if len({p.pid for p in multiprocessing.active_children()} - before) >= workers:
+                    break
+                time.sleep(0.01)
+            _restore_sigint(spawning)
+            spawning = None
+            self.result(fut, f"starting {workers} local Dask worker(s)", max(60.0, self.timeout_s) + 10.0 * workers)
         finally:
+            _restore_sigint(spawning)
             self._children = {p.pid for p in multiprocessing.active_children()} - before
             if old is None:
                 os.environ.pop("PYTHONWARNINGS", None)
