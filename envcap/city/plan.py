@@ -6,10 +6,12 @@ RGBA16F); a street larger than the budget is a shard of its own (a street is nev
 probes share one layer range, which the runtime uploads as one street); ``budget_bytes <= 0``
 makes one shard per street.  Scene order keeps the plan stable when streets are appended.
 
-Shards for parallel workers (issue 19): a city with enough work is also cut into at least
-:data:`PARALLEL_SHARDS` shards (streets allowing), each at most ``1 / PARALLEL_SHARDS`` of the
-city's probes but never under :data:`MIN_SHARD_SECONDS` of estimated work (the bake estimate's
-llvmpipe rates, :func:`shard_probe_cap`), so 2-16 workers each get shards to bake.  The plan
+Shards for parallel workers (issue 19): a shard also holds at most the larger of
+``1 / PARALLEL_SHARDS`` of the city's probes and :data:`MIN_SHARD_SECONDS` of estimated bake (the
+bake estimate's llvmpipe rates, :func:`shard_probe_cap`), streets never split: a city of over
+``PARALLEL_SHARDS x MIN_SHARD_SECONDS`` (64 s) of estimated bake gets at least 16 shards, a
+smaller one shards of about 4 s (1,150 probes at 32^2: ~13), so 2-16 workers each get shards to
+bake and a small city is not scattered into shards that cost more to set up than to bake.  The plan
 depends on the scene and the settings only, never on the cluster: a city baked by 2 workers, by
 64, or by one process has the same shards and bytes, and a bake killed on one cluster resumes
 on another with every finished shard kept.
