@@ -8,8 +8,10 @@ watch the scheduler).
   :class:`envcap.city.shard.ShardBaker` (its EGL context, made on the first shard, and the
   scenes it unpacked) for the worker's life: a scene is unpacked once per worker.
 * The scene travels as a :class:`~envcap.city.scene_parcel.SceneParcel` (the built scene and the
-  bytes of its sky files, no client path), scattered once; a shard comes back as its files'
-  bytes, which the client installs in the city directory (:func:`envcap.city.shard.install_shard_files`).
+  bytes of its sky files, no client path), scattered once to every worker (a copy on each, so a
+  dead worker loses no scene; should every copy be lost, the remaining shards are sent again with
+  it, :data:`SCENE_RESENDS` times); a shard comes back as its files' bytes, which the client
+  installs in the city directory (:func:`envcap.city.shard.install_shard_files`).
   Workers need neither the scene's files nor the city directory: no shared disk is needed.
 * Retries: a task that raises is retried ``retries`` times; a task whose worker dies (killed,
   out of memory) is rescheduled by the scheduler on another worker, up to Dask's
@@ -52,6 +54,8 @@ PLUGIN_NAME = "envcap-shard-baker"
 SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swiftshader", "swrast")
 SCENE_RATE_BPS = 10e6
 """The slowest transfer the scene's scatter is given time for (bytes/s), beyond the timeout."""
+SCENE_RESENDS = 2
+"""How many times shards whose scene was lost with its workers are sent again."""
 
 
 def has_gpu() -> bool:
@@ -123,23 +127,72 @@ class DaskRun:
     start_s: float = 0.0       # wall time until the client was connected and the plugin registered
 
 
+def _stats_of(session: ClusterSession) -> dict[str, dict[str, float]]:
+    """Each worker's :func:`worker_stats`, as far as they answer (a worker that just died, still
+    listed by the scheduler, is left out: the shards are already home)."""
+    try:
+        got = session.call(lambda: session.client.run(worker_stats, on_error="return"), "asking the workers for stats")
+    except ClusterError:
+        return {}
+    return {w: v for w, v in got.items() if isinstance(v, dict)}
+
+
 def _gpu_workers(info: dict[str, Any]) -> bool:
     return any(w.get("resources", {}).get("GPU", 0) >= 1 for w in info.get("workers", {}).values())
 
 
-async def _collect(client: Any, futures: dict[Any, ShardJob], results: "queue.Queue[Any]", retries: int,
-                   where: str) -> None:
-    """Put ``(job, files)`` in ``results`` as shards finish; a failed or lost shard raises."""
-    async for fut in distributed.as_completed(list(futures), loop=client.loop):
-        job = futures[fut]
-        if fut.status == "finished":
-            results.put((job, await fut.result()))
-            fut.release()
-        elif fut.status == "error":
-            exc = await fut.exception()
-            raise ClusterError(f"shard {job.task.path} failed on a worker of {where} ({retries} retries): {one_line(exc)}")
-        else:
-            raise ClusterError(f"{where} went away mid-bake (shard {job.task.path}: {fut.status})")
+@dataclass
+class _Bake:
+    """The client side of one bake on Dask (runs on the session's loop)."""
+
+    client: Any
+    parcel: SceneParcel
+    results: "queue.Queue[Any]"
+    retries: int
+    resources: dict[str, float] | None
+    timeout_s: float
+    where: str
+
+    async def scatter(self) -> Any:
+        """The parcel on every worker (a copy on each: losing a worker loses no scene)."""
+        wait = self.timeout_s + self.parcel.nbytes / SCENE_RATE_BPS
+        try:
+            return await asyncio.wait_for(self.client.scatter(self.parcel, broadcast=True, hash=False), wait)
+        except asyncio.TimeoutError:
+            raise ClusterError(f"sending the scene ({format_bytes(self.parcel.nbytes)}) to the workers of {self.where}: "
+                               f"no answer in {wait:g} s") from None
+
+    def submit(self, jobs: Sequence[ShardJob], scene: Any, attempt: int) -> dict[Any, ShardJob]:
+        return {self.client.submit(bake_on_worker, job, scene, key=f"envcap-shard-{job.task.key}-{attempt}",
+                                   retries=self.retries, resources=self.resources, pure=False): job for job in jobs}
+
+    async def collect(self, jobs: Sequence[ShardJob]) -> None:
+        """Put ``(job, files)`` in ``results`` as shards finish.  A shard that fails raises; shards
+        whose scene was lost with every worker holding it are sent again with the scene, up to
+        :data:`SCENE_RESENDS` times, while the scheduler answers."""
+        pending = self.submit(jobs, await self.scatter(), 0)
+        for attempt in range(1, SCENE_RESENDS + 2):
+            lost = []
+            async for fut in distributed.as_completed(list(pending), loop=self.client.loop):
+                job = pending[fut]
+                if fut.status == "finished":
+                    self.results.put((job, await fut.result()))
+                    fut.release()
+                elif fut.status == "error":
+                    exc = await fut.exception()
+                    raise ClusterError(f"shard {job.task.path} failed on a worker of {self.where} ({self.retries} "
+                                       f"retries): {one_line(exc)}")
+                else:
+                    lost.append((job, fut.status))
+            if not lost:
+                return
+            try:
+                await asyncio.wait_for(self.client.scheduler.identity(), self.timeout_s)
+            except Exception:
+                raise ClusterError(f"{self.where} went away mid-bake (shard {lost[0][0].task.path}: {lost[0][1]})") from None
+            if attempt > SCENE_RESENDS:
+                raise ClusterError(f"{self.where} lost {len(lost)} shard(s) {attempt} times (their workers died)")
+            pending = self.submit([job for job, _ in lost], await self.scatter(), attempt)
 
 
 async def _watch(client: Any, timeout_s: float, where: str) -> None:
@@ -159,10 +212,9 @@ async def _watch(client: Any, timeout_s: float, where: str) -> None:
             raise ClusterError(f"{where} has no workers left")
 
 
-async def _bake_all(client: Any, futures: dict[Any, ShardJob], results: "queue.Queue[Any]", retries: int,
-                    timeout_s: float, where: str) -> None:
-    work = asyncio.ensure_future(_collect(client, futures, results, retries, where))
-    dog = asyncio.ensure_future(_watch(client, timeout_s, where))
+async def _bake_all(bake: _Bake, jobs: Sequence[ShardJob]) -> None:
+    work = asyncio.ensure_future(bake.collect(jobs))
+    dog = asyncio.ensure_future(_watch(bake.client, bake.timeout_s, bake.where))
     try:
         done, _ = await asyncio.wait({work, dog}, return_when=asyncio.FIRST_COMPLETED)
         for t in done:
@@ -185,19 +237,10 @@ def run_on_dask(session: ClusterSession, jobs: Sequence[ShardJob], parcel: Scene
     run.gpu = _gpu_workers(session.identity()) if gpu is None else gpu
     session.call(lambda: client.register_plugin(BakerPlugin(), name=PLUGIN_NAME),
                  f"installing envcap's baker on the workers of {where}")
-    scattered = session.call(lambda: client.scatter(parcel, hash=False),
-                             f"sending the scene ({format_bytes(parcel.nbytes)}) to a worker of {where}",
-                             session.timeout_s + parcel.nbytes / SCENE_RATE_BPS)
-    res = {"GPU": 1} if run.gpu else None
     results: queue.Queue[Any] = queue.Queue()
+    bake = _Bake(client, parcel, results, retries, {"GPU": 1} if run.gpu else None, session.timeout_s, where)
     done = 0
-
-    async def submit() -> dict[Any, ShardJob]:
-        return {client.submit(bake_on_worker, job, scattered, key=f"envcap-shard-{job.task.key}", retries=retries,
-                              resources=res, pure=False): job for job in jobs}
-
-    futures = session.call(submit, f"submitting shards to {where}")
-    bg = session.start(lambda: _bake_all(client, futures, results, retries, session.timeout_s, where))
+    bg = session.start(lambda: _bake_all(bake, jobs))
     try:
         while done < len(jobs):
             try:
@@ -210,7 +253,7 @@ def run_on_dask(session: ClusterSession, jobs: Sequence[ShardJob], parcel: Scene
                 continue
             on_done(job, files)
             done += 1
-        run.workers = session.call(lambda: client.run(worker_stats), f"asking the workers of {where} for their stats")
+        run.workers = _stats_of(session)
     except ClusterError as exc:
         raise ClusterError(f"{exc}; {done} of {len(jobs)} shard(s) done and kept: rerun the same command to resume"
                            ) from None
