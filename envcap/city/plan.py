@@ -6,6 +6,16 @@ RGBA16F); a street larger than the budget is a shard of its own (a street is nev
 probes share one layer range, which the runtime uploads as one street); ``budget_bytes <= 0``
 makes one shard per street.  Scene order keeps the plan stable when streets are appended.
 
+Shards for parallel workers (issue 19): a shard also holds at most the larger of
+``1 / PARALLEL_SHARDS`` of the city's probes and :data:`MIN_SHARD_SECONDS` of estimated bake (the
+bake estimate's llvmpipe rates, :func:`shard_probe_cap`), streets never split: a city of over
+``PARALLEL_SHARDS x MIN_SHARD_SECONDS`` (64 s) of estimated bake gets at least 16 shards, a
+smaller one shards of about 4 s (1,150 probes at 32^2: ~13), so 2-16 workers each get shards to
+bake and a small city is not scattered into shards that cost more to set up than to bake.  The plan
+depends on the scene and the settings only, never on the cluster: a city baked by 2 workers, by
+64, or by one process has the same shards and bytes, and a bake killed on one cluster resumes
+on another with every finished shard kept.
+
 Keys (:func:`shard_key`): SHA-256 over the scene's content (:func:`scene_hash`: mesh arrays,
 streets, sky, effects, the bytes of files the sky reads), the shard's streets, the bake settings
 (:class:`BakeSettings`, output writers included), the envcap version and its code
@@ -34,12 +44,18 @@ from envcap import __version__
 from envcap.core.checks import positive_int
 from envcap.core.lobes import lobe_ladder
 from envcap.core.resources import shaders_dir
+from envcap.probeset.bake_bounds import estimate_bake
 from envcap.probeset.placement import check_spacing, probe_count
 from envcap.scene.model import Scene, Street
 
 SHARDS_DIR = "shards"
 KEY_IN_NAME = 20
 """Hex digits of the key in a shard's directory name (80 bits)."""
+PARALLEL_SHARDS = 16
+"""A city with enough work is planned in at least this many shards (streets allowing)."""
+MIN_SHARD_SECONDS = 4.0
+"""The smallest shard the parallel cut makes, in estimated seconds of bake (llvmpipe rates): below
+it a shard's fixed costs (its sky, mesh upload, a task) outweigh the parallelism."""
 
 
 @dataclass(frozen=True)
@@ -146,6 +162,17 @@ def _slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("._")[:32] or "street"
 
 
+def shard_probe_cap(total_probes: int, settings: BakeSettings) -> int:
+    """The most probes the parallel cut lets a shard hold (see the module docstring): a
+    :data:`PARALLEL_SHARDS`-th of ``total_probes``, but at least the probes of
+    :data:`MIN_SHARD_SECONDS` of estimated bake at ``settings``."""
+    est = functools.partial(estimate_bake, resolution=settings.resolution, filter_levels=settings.filter_levels,
+                            quality=settings.quality)
+    per_probe_s = est(1).seconds - est(0).seconds
+    floor = math.ceil(MIN_SHARD_SECONDS / per_probe_s) if per_probe_s > 0 and math.isfinite(per_probe_s) else 1
+    return max(1, math.ceil(total_probes / PARALLEL_SHARDS), floor)
+
+
 def plan_shards(scene: Scene, settings: BakeSettings, budget_bytes: int, digest: str | None = None,
                 code: str | None = None) -> list[ShardTask]:
     """The shards of ``scene`` under a size budget (bytes of ``probes.ktx2`` per shard; see the
@@ -156,19 +183,23 @@ def plan_shards(scene: Scene, settings: BakeSettings, budget_bytes: int, digest:
     digest = scene_hash(scene) if digest is None else digest
     code = code_digest() if code is None else code
     per = probe_bytes(settings.resolution)
-    groups: list[list[tuple[Street, int]]] = []
-    size = 0
+    counts = []
     for st in scene.streets:
         count = probe_count(st, settings.spacing)
         if not math.isfinite(count):
             raise ValueError(f"street '{st.name}': {st.length} m at {settings.spacing} m spacing is too many probes")
-        n = int(count)
-        if groups and budget_bytes > 0 and size + n * per <= budget_bytes:
+        counts.append(int(count))
+    cap = shard_probe_cap(sum(counts), settings)
+    groups: list[list[tuple[Street, int]]] = []
+    size = probes = 0
+    for st, n in zip(scene.streets, counts):
+        if groups and budget_bytes > 0 and size + n * per <= budget_bytes and probes + n <= cap:
             groups[-1].append((st, n))
             size += n * per
+            probes += n
         else:
             groups.append([(st, n)])
-            size = n * per
+            size, probes = n * per, n
     tasks = []
     for i, group in enumerate(groups):
         streets = [st for st, _ in group]

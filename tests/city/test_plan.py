@@ -48,3 +48,24 @@ def test_a_key_changes_with_each_input_and_only_with_them(crossing):
     other_scene = dataclasses.replace(crossing, mesh=dataclasses.replace(crossing.mesh, positions=moved))
     others.append(shard_key(scene_hash(other_scene), st, BakeSettings(resolution=8, spacing=5), code))
     assert len({base, *others}) == len(others) + 1
+
+
+def test_a_city_with_enough_work_is_cut_for_parallel_workers_whatever_the_cluster(crossing):
+    """Issue 19: 171 streets, 1,150 probes at 32^2 were one shard (75 MB, under the 256 MB budget),
+    so one of two workers did everything.  The plan now has shards for 2-16 workers, from the
+    scene and settings alone (no worker count enters it)."""
+    from envcap.city.plan import MIN_SHARD_SECONDS, PARALLEL_SHARDS, shard_probe_cap
+
+    streets = [dataclasses.replace(crossing.streets[i % 2], name=f"street_{i:03d}") for i in range(171)]
+    city = dataclasses.replace(crossing, streets=streets)
+    s = BakeSettings(resolution=32, spacing=50.0, quality="composed")   # 6 probes a street: 1,026 probes
+    tasks = plan_shards(city, s, 256_000_000, "0" * 64, "0" * 64)
+    cap = shard_probe_cap(1026, s)
+    # by hand: a probe at 32^2 is 37 ms + 6 x 32^2 x 1 us = 43.1 ms, so 4 s of work is 93 probes
+    # (more than 1,026 / 16 = 65): shards of 15 streets (90 probes), 12 of them
+    assert MIN_SHARD_SECONDS == 4.0 and cap == 93 and len(tasks) == 12 <= PARALLEL_SHARDS
+    assert [n for t in tasks for n in t.streets] == [st.name for st in streets]        # scene order, every street
+    assert sum(t.probes for t in tasks) == 1026
+    # a small city is not cut below the work a shard is worth; the size budget still applies
+    assert [t.streets for t in plan_shards(crossing, s, 256_000_000)] == [("east_west", "north_south")]
+    assert len(plan_shards(city, s, probe_bytes(32) * 6, "0" * 64, "0" * 64)) == 171

@@ -75,9 +75,10 @@ def test_a_rerun_skips_finished_shards_and_new_inputs_replace_stale_ones(tmp_pat
 
 @pytest.mark.slow
 def test_a_worker_killed_while_it_writes_a_shard_is_replaced_and_the_bits_are_the_same(tmp_path, gl_ctx):
-    """Issue 11: "Tasks are retried on worker loss".  A worker process is SIGKILLed as soon as a
-    shard's temporary directory appears (the one with a file open in it, when seen); the scheduler
-    reschedules its task and the city has the bytes of a one-process bake."""
+    """Issue 11: "Tasks are retried on worker loss".  A worker process is SIGKILLed as soon as it
+    has a file open in its temporary shard folder (``envcap-shard-*``: a worker writes a shard on
+    its own disk and sends the bytes back, issue 19); the scheduler reschedules its task and the
+    city has the bytes of a one-process bake."""
     distributed = pytest.importorskip("distributed")
     import threading
 
@@ -92,13 +93,16 @@ def test_a_worker_killed_while_it_writes_a_shard_is_replaced_and_the_bits_are_th
         def kill_one_mid_write() -> None:
             deadline = time.monotonic() + 120
             while time.monotonic() < deadline and not killed:
-                shards = out / "shards"
-                if shards.is_dir() and any(p.name.startswith(".") for p in shards.iterdir()):
-                    busy = [pid for pid in pids if any("/shards/." in os.path.realpath(f"/proc/{pid}/fd/{fd}")
-                                                       for fd in os.listdir(f"/proc/{pid}/fd"))]
-                    pid = (busy or pids)[0]
-                    os.kill(pid, signal.SIGKILL)
-                    killed.append(pid)
+                for pid in pids:
+                    try:
+                        busy = any("/envcap-shard-" in os.readlink(f"/proc/{pid}/fd/{fd}")
+                                   for fd in os.listdir(f"/proc/{pid}/fd"))
+                    except OSError:
+                        continue
+                    if busy:
+                        os.kill(pid, signal.SIGKILL)
+                        killed.append(pid)
+                        break
                 time.sleep(0.002)
 
         watcher = threading.Thread(target=kill_one_mid_write)
