@@ -26,7 +26,7 @@ def test_serves_page_probe_files_and_api(viewer_server, viewer_probe_dir):
     base = viewer_server.url
     assert base.startswith("http://127.0.0.1:")
     status, ctype, body = get(base)
-    assert status == 200 and ctype.startswith("text/html") and b'src="/web/viewer.js"' in body
+    assert status == 200 and ctype.startswith("text/html") and b'src="web/viewer.js"' in body
     for name in ("viewer.js", "runtime.js", "ktx2.js", "viewer.css"):
         assert get(base + "web/" + name)[0] == 200
     assert get(base + "set/probes_atlas.ktx2")[2] == (viewer_probe_dir / "probes_atlas.ktx2").read_bytes()
@@ -65,7 +65,7 @@ def test_bad_inputs_are_named(tmp_path, canyon_probe_set, viewer_probe_dir):
     with pytest.raises(FileNotFoundError, match="not found"):
         ViewerSite.open(tmp_path / "missing")
     plain = write_probe_set(tmp_path / "plain", canyon_probe_set, exr=False, previews=False, writers=["ktx2"])
-    with pytest.raises(ValueError, match="--webgl2"):
+    with pytest.raises(ValueError, match="no probes_atlas.ktx2, the WebGL2 face atlas"):
         ViewerSite.open(plain)
     with pytest.raises(FileNotFoundError, match="report.json"):
         ViewerSite.open(viewer_probe_dir, report_dir=tmp_path)
@@ -103,7 +103,7 @@ def test_report_plots_are_listed_and_served(tmp_path, viewer_probe_dir):
         Image.new("RGB", (4, 3), (200, 10, 10)).save(rep / name)
     (rep / "notes.txt").write_text("not served\n")
     site = ViewerSite.open(viewer_probe_dir, report_dir=rep)
-    assert site.config()["plots"] == ["/report/error_vs_lobe.png", "/report/worst_canyon_0_mirror.png"]
+    assert site.config()["plots"] == ["report/error_vs_lobe.png", "report/worst_canyon_0_mirror.png"]
     # evaluation positions: grouped by position, mean over lobe powers; NaN and malformed rows dropped
     ev = site.config()["evaluation"]
     assert len(ev) == 1 and ev[0]["position"] == [10.0, 2.0, 1.5]
