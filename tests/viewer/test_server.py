@@ -3,6 +3,7 @@ served, nothing else; the config carries the runtime uniforms of the numpy twin;
 the address and serves it."""
 
 import json
+import shutil
 import subprocess
 import sys
 import urllib.error
@@ -117,3 +118,31 @@ def test_report_plots_are_listed_and_served(tmp_path, viewer_probe_dir):
     finally:
         server.shutdown()
         server.server_close()
+
+
+def test_view_finds_the_set_in_a_demo_directory_and_names_the_atlas_command(tmp_path, canyon_probe_set, viewer_probe_dir):
+    """``envcap view`` on ``envcap demo``'s output (``probes/`` + ``evaluation/``) serves the set
+    with its report; on a set without the face atlas it prints the one command that makes it."""
+    from envcap.viewer.site_dir import open_site
+
+    top = tmp_path / "envcap-demo"
+    shutil.copytree(viewer_probe_dir, top / "probes")
+    (top / "evaluation").mkdir()
+    (top / "evaluation" / "report.json").write_text(json.dumps({"positions": []}) + "\n")
+    site = open_site(top)
+    assert site.probe_dir == (top / "probes").resolve() and site.report_dir == (top / "evaluation").resolve()
+    shutil.copytree(viewer_probe_dir, top / "more")
+    with pytest.raises(ValueError, match="holds 2 probe sets"):
+        open_site(top)
+    with pytest.raises(FileNotFoundError, match="no probe set here"):
+        open_site(top / "evaluation")
+    plain = tmp_path / "plain set"
+    from envcap.probeset.store import write_probe_set
+
+    write_probe_set(plain, canyon_probe_set, exr=False, previews=False, writers=["ktx2"])
+    r = subprocess.run([sys.executable, "-m", "envcap", "view", "plain set"], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=60)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert lines[0].startswith("envcap: error: ") and "no probes_atlas.ktx2" in lines[0]
+    assert "make it with: envcap export web 'plain set' --out 'plain set-web'" in lines[0], lines[0]
