@@ -1,6 +1,7 @@
-"""Shared fixtures: one headless OpenGL context (Mesa llvmpipe through EGL) per test session, and
+"""Shared fixtures: one headless OpenGL context (Mesa llvmpipe through EGL) per test session,
 one small probe set baked per session for the tests that need a real bake but not particular
-settings (``canyon_probe_set``)."""
+settings (``canyon_probe_set``), and one headless Chromium per session (``chromium``: the viewer
+tests and the journeys point it at their pages)."""
 
 import os
 
@@ -32,6 +33,25 @@ def canyon_probe_set(gl_ctx):
     from envcap.scene import load_scene
 
     return bake_probe_set(load_scene("canyon"), resolution=8, spacing=100.0, ctx=gl_ctx, progress=False)
+
+
+WINDOW = (1000, 560)
+"""The session browser's viewport (CSS px)."""
+
+
+@pytest.fixture(scope="session")
+def chromium():
+    """The session's headless Chromium (``WINDOW``), on whatever page the last test module opened
+    (skipped only where no Chromium is installed: ``.ci/run`` installs Debian's ``chromium``)."""
+    from envcap.viewer.browser import find_chromium
+
+    if find_chromium() is None:
+        pytest.skip("no chromium executable on PATH (Debian: apt-get install chromium; .ci/run installs it)")
+    pytest.importorskip("websocket", reason="websocket-client is not installed (pip install websocket-client)")
+    from envcap.viewer.browser import Chromium
+
+    with Chromium(*WINDOW) as b:
+        yield b
 
 
 @pytest.fixture(scope="module", autouse=True)

@@ -25,7 +25,7 @@ LAYOUT = {
     "evaluate": (6, 0), "viewer": (7, 0),
     "sky": (0.5, 1), "formats": (2.5, 1), "outputs": (3.5, 1), "city": (4.5, 1),
     "core": (1.5, 2), "gpu": (3, 2),
-    "cli": (6.5, 2), "benchmarks": (6.5, 1),
+    "cli": (6.5, 2), "benchmarks": (6.5, 1), "export": (7.5, 1),
 }
 # Every stage may use these; their arrows are left out of the picture (counted in the title).
 BASE = {"core", "gpu", "outputs"}
@@ -36,7 +36,7 @@ ROLE = {
     "sky": "sky models + sun", "formats": "KTX2, EXR, PNG writers", "outputs": "safe output dirs",
     "core": "cube, lobes, colour, checks", "gpu": "EGL, cube arrays, uniforms", "cli": "envcap COMMAND",
     "benchmarks": "envcap bench NAME", "city": "shards, index, Dask", "dynamic": "spheres, avatars (Eq. 4-7)",
-    "viewer": "WebGL2 page",
+    "viewer": "WebGL2 page", "export": "envcap export TARGET",
 }
 
 
@@ -67,7 +67,7 @@ def main() -> Path:
     ax.annotate("", xy=(5.45, 0.9), xytext=(-0.45, 0.9), arrowprops=dict(arrowstyle="-|>", color="#224488", lw=2))
     ax.text(3.5, 0.97, "the pipeline: scene -> capture -> prefilter -> probe set -> runtime -> dynamic -> evaluate -> viewer",
             ha="center", fontsize=10, color="#224488")
-    ax.set_xlim(-0.6, 7.6)
+    ax.set_xlim(-0.6, 8.0)
     ax.set_ylim(-2.7, 1.05)
     ax.axis("off")
     ax.set_title(f"envcap packages ({len(g.modules)} modules, {len(g.cycles())} import cycles). Grey arrow: "

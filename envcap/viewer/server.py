@@ -1,15 +1,17 @@
 """The viewer's HTTP server: :mod:`http.server` on 127.0.0.1 (loopback only), one thread per request.
 
-Routes (GET / HEAD): ``/`` -> ``web/index.html``; ``/web/NAME`` -> the page's static files
-(:data:`envcap.viewer.site.WEB_DIR`); ``/set/NAME`` -> the files the probe set's manifest names
-(``manifest.json``, ``probes_atlas.ktx2``, ``sky.ktx2``, ...); ``/report/NAME`` -> the report's
-PNG plots; ``/api/config.json`` and ``/api/runtime.glsl`` (:mod:`envcap.viewer.site`).  Anything
-else is 404: only files listed for serving are read, so no path can escape the directories.
+Routes (GET / HEAD): the site's :meth:`~envcap.viewer.site.ViewerSite.routes` (a city's:
+:meth:`~envcap.viewer.city_site.CitySite.routes`), the list ``envcap export web`` writes too:
+``/`` -> ``web/index.html``; ``/three.html``; ``/web/NAME`` and ``/three/NAME`` -> the page's static
+files (:data:`envcap.viewer.site.WEB_DIR`); ``/set/NAME`` -> the files the probe set's manifest
+names (``manifest.json``, ``probes_atlas.ktx2``, ``sky.ktx2``, ...); ``/report/NAME`` -> the
+report's ``report.json`` and PNG plots; ``/api/config.json`` and ``/api/runtime.glsl``
+(:mod:`envcap.viewer.site`).  Anything else is 404: only files listed for serving are read, so no
+path can escape the directories.
 """
 
 from __future__ import annotations
 
-import json
 import threading
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -17,22 +19,13 @@ from pathlib import Path
 from typing import Mapping
 from urllib.parse import unquote, urlsplit
 
-from envcap.viewer.site import WEB_DIR, ViewerSite, runtime_glsl_webgl2
+from envcap.viewer.city_site import CitySite
+from envcap.viewer.site import Body, ViewerSite
 
 CONTENT_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
                  ".css": "text/css; charset=utf-8", ".json": "application/json", ".png": "image/png",
                  ".ktx2": "image/ktx2", ".glsl": "text/plain; charset=utf-8", ".exr": "image/x-exr",
                  ".md": "text/markdown; charset=utf-8", ".glb": "model/gltf-binary"}
-
-
-def _manifest_files(site: ViewerSite) -> dict[str, Path]:
-    doc = json.loads((site.probe_dir / "manifest.json").read_text())
-    names = {"manifest.json"}
-    for v in doc.get("files", {}).values():
-        for name in (v if isinstance(v, list) else [v]):
-            if isinstance(name, str):
-                names.add(name)
-    return {n: site.probe_dir / n for n in names if (site.probe_dir / n).is_file()}
 
 
 class ViewerServer(ThreadingHTTPServer):
@@ -42,25 +35,35 @@ class ViewerServer(ThreadingHTTPServer):
 
     daemon_threads = True
 
-    def __init__(self, site: ViewerSite, port: int = 0, host: str = "127.0.0.1",
+    def __init__(self, site: ViewerSite | CitySite, port: int = 0, host: str = "127.0.0.1",
                  extra_routes: Mapping[str, Path] | None = None) -> None:
         if host not in ("127.0.0.1", "localhost", "::1"):
             raise ValueError(f"the viewer serves on the loopback interface only, got host {host!r}")
         if not 0 <= int(port) <= 65535:
             raise ValueError(f"port must be in 0..65535, got {port}")
         self.site = site
-        self.routes: dict[str, Path | bytes] = {"/": WEB_DIR / "index.html"}
-        self.routes.update({f"/web/{p.name}": p for p in WEB_DIR.iterdir() if p.is_file()})
-        self.routes.update({f"/set/{n}": p for n, p in _manifest_files(site).items()})
-        if site.report_dir is not None:
-            self.routes.update({f"/report/{p.name}": p for p in site.report_dir.glob("*.png")})
-        self.routes["/api/config.json"] = json.dumps(site.config(), allow_nan=False).encode()
-        self.routes["/api/runtime.glsl"] = runtime_glsl_webgl2().encode()
+        self.routes: dict[str, Body] = dict(site.routes())
+        self._made: dict[str, bytes] = {}
+        self._made_lock = threading.Lock()
+        config = self.routes["/api/config.json"]
+        self.routes["/api/config.json"] = config() if callable(config) else config   # bad content fails here, not in a request
         for route, path in (extra_routes or {}).items():  # e.g. a test page and the three.js build
             if not route.startswith("/") or not Path(path).is_file():
                 raise ValueError(f"extra route {route!r}: must start with '/' and name a file, got {path}")
             self.routes[route] = Path(path)
         super().__init__((host, int(port)), _Handler)
+
+    def body(self, path: str) -> bytes | None:
+        """The bytes served at ``path``, or ``None`` (404); a route made on request is made once."""
+        item = self.routes.get(path)
+        if item is None or isinstance(item, bytes):
+            return item
+        if isinstance(item, Path):
+            return item.read_bytes()
+        with self._made_lock:
+            if path not in self._made:
+                self._made[path] = item()
+            return self._made[path]
 
     @property
     def url(self) -> str:
@@ -74,11 +77,10 @@ class _Handler(BaseHTTPRequestHandler):
 
     def _send(self, head_only: bool) -> None:
         path = unquote(urlsplit(self.path).path)
-        item = self.server.routes.get(path)
-        if item is None:
+        body = self.server.body(path)
+        if body is None:
             self.send_error(HTTPStatus.NOT_FOUND, f"{path} is not served")
             return
-        body = item if isinstance(item, bytes) else item.read_bytes()
         suffix = Path(path).suffix if path != "/" else ".html"
         self.send_response(HTTPStatus.OK)
         self.send_header("Content-Type", CONTENT_TYPES.get(suffix, "application/octet-stream"))
@@ -98,7 +100,7 @@ class _Handler(BaseHTTPRequestHandler):
         pass
 
 
-def serve(site: ViewerSite, port: int = 0, host: str = "127.0.0.1",
+def serve(site: ViewerSite | CitySite, port: int = 0, host: str = "127.0.0.1",
           extra_routes: Mapping[str, Path] | None = None) -> tuple[ViewerServer, threading.Thread]:
     """Start a :class:`ViewerServer` for ``site`` in a daemon thread; returns it and the thread
     (stop with ``server.shutdown(); server.server_close()``)."""

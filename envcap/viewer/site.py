@@ -2,7 +2,10 @@
 their runtime uniforms, methods, sun, lobe powers, report plots) and ``/api/runtime.glsl`` (the
 runtime library for WebGL2: :func:`envcap.runtime.shader_targets.prologue` ``("webgl2")`` plus
 ``runtime/envcap_street_uniforms.glsl`` with every ``#include`` resolved, since a browser has no
-include path).
+include path); and :meth:`ViewerSite.routes`, every URL path of the site and what it serves, the
+one list that ``envcap view`` serves and ``envcap export web`` writes as static files.  The page's
+URLs are relative (``set/manifest.json``, ``report/NAME``, ``api/config.json``), so the site works
+from any directory of any static server.
 
 Street uniforms are :meth:`envcap.runtime.street.RuntimeStreet.uniforms` of each manifest street
 (nominal and fitted plane sets: ``frame`` and the slopes in ``planes[i].w`` included), so the page
@@ -27,12 +30,13 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Union
 
 import numpy as np
 
 from envcap.core.resources import expand_includes
-from envcap.core.street_frame import frame_to_world, from_frame, plan_rotation
+from envcap.core.street_frame import OptionalFrame, frame_to_world, from_frame, plan_rotation
+from envcap.formats.webgl2_writer import ATLAS_FILE
 from envcap.probeset.manifest import Manifest, read_manifest
 from envcap.runtime import methods as runtime_methods
 from envcap.runtime.limits import MAX_PROBES
@@ -40,7 +44,22 @@ from envcap.runtime.shader_targets import prologue
 from envcap.runtime.street import StreetProbes, StreetUniforms
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
-"""The page's static files (``index.html`` and its ES modules), shipped with the package."""
+"""The page's static files (``index.html``, ``three.html`` and their ES modules; ``three/``: the
+three.js r187 build, MIT), shipped with the package."""
+
+Body = Union[Path, bytes, Callable[[], bytes]]
+"""What a route serves: a file, bytes, or a function making the bytes when asked."""
+
+Routes = dict[str, Body]
+"""URL path (leading ``/``; ``/`` is ``index.html``) -> what it serves."""
+
+
+class MissingAtlas(ValueError):
+    """A probe set (or a city shard) without ``probes_atlas.ktx2``, the WebGL2 face atlas."""
+
+    def __init__(self, probe_dir: Path) -> None:
+        super().__init__(f"{probe_dir}: no {ATLAS_FILE}, the WebGL2 face atlas (WebGL2 has no cube-map arrays)")
+        self.probe_dir = probe_dir
 
 VIEWER_METHODS: dict[str, str] = {"nearest": "viewer_nearest", "planes": "viewer_planes"}
 """Methods without a runtime GLSL function that the page still offers, by the page's own GLSL
@@ -86,6 +105,70 @@ def find_report(probe_dir: Path) -> Path | None:
     return None
 
 
+def page_routes() -> Routes:
+    """The page's own files: ``/`` (the viewer, ``index.html``), ``/three.html`` (the probe set in
+    three.js), ``/web/NAME`` (their modules and CSS) and ``/three/NAME`` (the three.js build)."""
+    out: Routes = {"/": WEB_DIR / "index.html", "/three.html": WEB_DIR / "three.html"}
+    out.update({f"/web/{p.name}": p for p in sorted(WEB_DIR.iterdir()) if p.is_file() and p.suffix != ".html"})
+    out.update({f"/three/{p.name}": p for p in sorted((WEB_DIR / "three").iterdir()) if p.is_file()})
+    return out
+
+
+def report_routes(report_dir: Path | None) -> Routes:
+    """``/report/NAME``: a report's ``report.json`` and PNG plots (none without a report)."""
+    if report_dir is None:
+        return {}
+    return {"/report/report.json": report_dir / "report.json",
+            **{f"/report/{p.name}": p for p in sorted(report_dir.glob("*.png"))}}
+
+
+def street_plan(st: OptionalFrame, axis: str, start: float, end: float, facades: tuple[float, float]) -> dict[str, Any]:
+    """A street's plan for the page (the map, which street the camera is in): ``along`` (axis index
+    in its frame), ``frame`` (``yaw_deg``, ``origin_xz``, ``cos_sin``: float64), ``direction`` (world
+    plan unit vector along it) and ``corners`` (world plan points (x, z) of its rectangle
+    ``start..end`` x ``facades``, in order around it)."""
+    yaw, oxz = st.frame_yaw_deg, st.frame_origin_xz
+    along = 0 if axis == "x" else 2
+    r = plan_rotation(yaw)
+    unit = np.zeros(3)
+    unit[along] = 1.0
+    rect = np.zeros((4, 3))
+    rect[:, along] = (start, end, end, start)
+    rect[:, 2 - along] = (facades[0], facades[0], facades[1], facades[1])
+    return {"along": along, "frame": {"yaw_deg": yaw, "origin_xz": list(oxz), "cos_sin": [float(r[0, 0]), float(r[0, 2])]},
+            "direction": from_frame(unit, yaw)[[0, 2]].tolist(),
+            "corners": frame_to_world(rect, yaw, oxz)[:, [0, 2]].tolist()}
+
+
+def report_plots(report_dir: Path | None) -> list[str]:
+    """URLs of the report's PNG plots (``report/NAME``), plots first, then worst positions."""
+    if report_dir is None:
+        return []
+    names = sorted(p.name for p in report_dir.glob("*.png"))
+    return ["report/" + n for n in sorted(names, key=lambda n: (n.startswith("worst_"), n))]
+
+
+def report_positions(report_dir: Path | None) -> list[dict[str, Any]]:
+    """The report's evaluation positions (``report.json`` ``positions`` rows grouped by world
+    position): ``{"position": [x, y, z], "street": name, "error": {method: mean rel. RMSE
+    over its lobe powers and sun variants}}``; rows without a finite position or error are skipped."""
+    if report_dir is None:
+        return []
+    doc = json.loads((report_dir / "report.json").read_text())
+    groups: dict[tuple[float, ...], dict[str, Any]] = {}
+    for r in doc.get("positions", []) if isinstance(doc, dict) else []:
+        pos, err, meth = r.get("position"), r.get("rel_rmse"), r.get("method")
+        if not (isinstance(pos, list) and len(pos) == 3 and isinstance(meth, str) and isinstance(err, (int, float))):
+            continue
+        if not (all(isinstance(v, (int, float)) and math.isfinite(v) for v in pos) and math.isfinite(err)):
+            continue
+        g = groups.setdefault(tuple(pos), {"position": list(map(float, pos)), "street": r.get("street"), "sums": {}})
+        total, n = g["sums"].get(meth, (0.0, 0))
+        g["sums"][meth] = (total + float(err), n + 1)
+    return [{"position": g["position"], "street": g["street"],
+             "error": {m: t / n for m, (t, n) in sorted(g["sums"].items())}} for g in groups.values()]
+
+
 def viewer_methods() -> list[dict[str, Any]]:
     """The parallax methods the page can run: the registered ones with a GLSL function, plus
     :data:`VIEWER_METHODS`; each with its plane set, summary and (``planes_mip_aniso``) taps."""
@@ -102,69 +185,107 @@ def viewer_methods() -> list[dict[str, Any]]:
 @dataclass(frozen=True)
 class ViewerSite:
     """A probe set as the viewer serves it: ``probe_dir`` (with ``manifest.json`` and, for WebGL2,
-    ``probes_atlas.ktx2``), its checked :class:`Manifest`, and an optional evaluation ``report_dir``."""
+    ``probes_atlas.ktx2``), its checked :class:`Manifest`, an optional evaluation ``report_dir``,
+    and ``prefix``, the site folder its files are served under (``set/``; a city's shard:
+    ``set/<shard path>/``)."""
 
     probe_dir: Path
     manifest: Manifest
     report_dir: Path | None = None
+    prefix: str = "set/"
 
     @staticmethod
-    def open(probe_dir: str | Path, report_dir: str | Path | None = None) -> "ViewerSite":
-        """Check and open ``probe_dir`` (``FileNotFoundError`` / ``ValueError`` naming the problem);
-        ``report_dir`` default: :func:`find_report`."""
+    def open(probe_dir: str | Path, report_dir: str | Path | None = None, *, require_atlas: bool = True,
+             prefix: str = "set/", find_report_dir: bool = True) -> "ViewerSite":
+        """Check and open ``probe_dir`` (``FileNotFoundError`` / ``ValueError`` naming the problem;
+        :class:`MissingAtlas` without the face atlas when ``require_atlas``: ``envcap export web``
+        opens with ``False`` and makes it).  ``report_dir`` default: :func:`find_report` (when
+        ``find_report_dir``)."""
         root = Path(probe_dir).resolve()
         if not root.is_dir():
             raise FileNotFoundError(f"probe-set directory not found: {root}")
         m = read_manifest(root / "manifest.json")
-        atlas = m.files.extra.get("probes_atlas")
-        if not atlas or not (root / atlas).is_file():
-            raise ValueError(f"{root}: no probes_atlas.ktx2 (WebGL2 has no cube-map arrays); "
-                             "bake with 'envcap capture ... --webgl2'")
         if m.files.sky is None or not (root / m.files.sky).is_file():
             raise FileNotFoundError(f"{root}: sky file missing")
-        layers = _ktx2_layer_count(root / atlas)
-        if layers != 6 * m.layer_count:
-            why = (f" (a rung ladder of {m.ladder.per_level} rungs per level: the page reads one chain per probe, "
-                   "layer r = 0)" if m.ladder is not None else "")
-            raise ValueError(f"{root / atlas}: {layers} layers, the viewer needs 6 per probe = {6 * m.layer_count}{why}")
-        rep = Path(report_dir).resolve() if report_dir is not None else find_report(root)
+        site = ViewerSite(root, m, None, prefix)
+        if site.has_atlas:
+            layers = _ktx2_layer_count(root / site.atlas_name)
+            if layers != 6 * m.layer_count:
+                why = (f" (a rung ladder of {m.ladder.per_level} rungs per level: the page reads one chain per probe, "
+                       "layer r = 0)" if m.ladder is not None else "")
+                raise ValueError(f"{root / site.atlas_name}: {layers} layers, the viewer needs 6 per probe = "
+                                 f"{6 * m.layer_count}{why}")
+        elif require_atlas:
+            raise MissingAtlas(root)
+        rep = Path(report_dir).resolve() if report_dir is not None else (find_report(root) if find_report_dir else None)
         if rep is not None and not (rep / "report.json").is_file():
             raise FileNotFoundError(f"{rep}: not an evaluation report (no report.json)")
-        return ViewerSite(root, m, rep)
+        return ViewerSite(root, m, rep, prefix)
+
+    @property
+    def atlas_name(self) -> str:
+        """The face atlas's file name: the manifest's ``files.probes_atlas``, else ``probes_atlas.ktx2``."""
+        name = self.manifest.files.extra.get("probes_atlas")
+        return name if isinstance(name, str) else ATLAS_FILE
+
+    @property
+    def has_atlas(self) -> bool:
+        """Whether the probe set has its face atlas on disk."""
+        return (self.probe_dir / self.atlas_name).is_file()
+
+    def manifest_files(self) -> dict[str, Path]:
+        """The files the manifest names that exist (``manifest.json`` included), by relative name."""
+        doc = json.loads((self.probe_dir / "manifest.json").read_text())
+        names = {"manifest.json"}
+        for v in doc.get("files", {}).values():
+            for name in (v if isinstance(v, list) else [v]):
+                if isinstance(name, str):
+                    names.add(name)
+        return {n: self.probe_dir / n for n in sorted(names) if (self.probe_dir / n).is_file()}
+
+    def set_routes(self) -> Routes:
+        """``/<prefix>NAME`` for each file the manifest names (the face atlas included, if on disk)."""
+        return {f"/{self.prefix}{n}": path for n, path in self.manifest_files().items()}
+
+    def routes(self) -> Routes:
+        """Everything the site serves: the page (:func:`page_routes`), the probe set's files, the
+        report's (:func:`report_routes`), ``/api/config.json`` and ``/api/runtime.glsl``."""
+        out = page_routes()
+        out.update(self.set_routes())
+        out.update(report_routes(self.report_dir))
+        out["/api/config.json"] = lambda: json.dumps(self.config(), allow_nan=False).encode()
+        out["/api/runtime.glsl"] = lambda: runtime_glsl_webgl2().encode()
+        return out
+
+    def files(self) -> dict[str, str]:
+        """The page's URLs of the face atlas, the sky and (when on disk) ``scene.glb``."""
+        m = self.manifest
+        gltf = m.files.extra.get("scene_gltf")   # the bake's scene.glb, if written
+        return {"manifest": self.prefix + "manifest.json", "atlas": self.prefix + self.atlas_name,
+                "sky": self.prefix + str(m.files.sky),
+                **({"scene": self.prefix + gltf} if isinstance(gltf, str) and (self.probe_dir / gltf).is_file() else {})}
 
     def streets(self) -> list[dict[str, Any]]:
-        """Per street: name, axis, ``along`` (axis index in its frame), extent and nominal planes
-        (frame coordinates), its frame (``yaw_deg``, ``origin_xz``, ``cos_sin`` = (cos, sin) of the
-        yaw, float64; yaw 0 / origin (0, 0) for a world-frame street), ``direction`` (world plan
-        unit vector (x, z) along it), ``corners`` (world plan points (x, z) of its rectangle
-        ``start..end`` x ``facade_min..facade_max``, in order around it), probes (world positions,
-        layers, nominal ground and ``ground_slope``) and the runtime uniforms of both plane sets
-        (``uniforms.nominal`` / ``uniforms.fitted``) with their ``origin`` (frame m)."""
+        """Per street: name, axis, extent and nominal planes (frame coordinates), its plan
+        (:func:`street_plan`: ``along``, ``frame``, ``direction``, ``corners``), probes (world
+        positions, layers, nominal ground and ``ground_slope``) and the runtime uniforms of both
+        plane sets (``uniforms.nominal`` / ``uniforms.fitted``) with their ``origin`` (frame m)."""
         out = []
         for st in self.manifest.streets:
             if not st.probes:
                 continue
             sp = StreetProbes.from_manifest(st)
-            yaw, oxz = st.frame_yaw_deg, st.frame_origin_xz
             mid = np.zeros(3)
             mid[sp.along] = 0.5 * (st.start + st.end)
-            mid = frame_to_world(mid, yaw, oxz)          # StreetProbes.local takes a world point
+            mid = frame_to_world(mid, st.frame_yaw_deg, st.frame_origin_xz)   # StreetProbes.local takes a world point
             rs = {ps: (sp.local(mid, MAX_PROBES, ps) if sp.layers.size > MAX_PROBES else sp.runtime_street(ps))
                   for ps in ("nominal", "fitted")}
             uni = {ps: r.uniforms(self.manifest.lobes.powers) for ps, r in rs.items()}
-            r = plan_rotation(yaw)
-            axis = np.zeros(3)
-            axis[sp.along] = 1.0
             pl = st.planes.as_array()
-            rect = np.zeros((4, 3))
-            rect[:, sp.along] = (st.start, st.end, st.end, st.start)
-            rect[:, 2 - sp.along] = (pl[0], pl[0], pl[1], pl[1])
             out.append({
-                "name": st.name, "axis": st.axis, "along": sp.along, "start": st.start, "end": st.end,
+                "name": st.name, "axis": st.axis, "start": st.start, "end": st.end,
                 "center": st.center, "planes": pl.tolist(),
-                "frame": {"yaw_deg": yaw, "origin_xz": list(oxz), "cos_sin": [float(r[0, 0]), float(r[0, 2])]},
-                "direction": from_frame(axis, yaw)[[0, 2]].tolist(),
-                "corners": frame_to_world(rect, yaw, oxz)[:, [0, 2]].tolist(),
+                **street_plan(st, st.axis, st.start, st.end, (float(pl[0]), float(pl[1]))),
                 "probes": [{"layer": int(q.layer), "position": list(map(float, q.position)),
                             "ground": float(q.planes.ground), "ground_slope": q.planes.slope} for q in st.probes_along()],
                 "origin": uni["nominal"].origin.tolist(),
@@ -177,43 +298,20 @@ class ViewerSite:
         return viewer_methods()
 
     def report_plots(self) -> list[str]:
-        """URLs of the report's PNG plots (``/report/NAME``), plots first, then worst positions."""
-        if self.report_dir is None:
-            return []
-        names = sorted(p.name for p in self.report_dir.glob("*.png"))
-        return ["/report/" + n for n in sorted(names, key=lambda n: (n.startswith("worst_"), n))]
+        """URLs of the report's PNG plots (:func:`report_plots`)."""
+        return report_plots(self.report_dir)
 
     def report_positions(self) -> list[dict[str, Any]]:
-        """The report's evaluation positions (``report.json`` ``positions`` rows grouped by world
-        position): ``{"position": [x, y, z], "street": name, "error": {method: mean rel. RMSE
-        over its lobe powers and sun variants}}``; rows without a finite position or error are skipped."""
-        if self.report_dir is None:
-            return []
-        doc = json.loads((self.report_dir / "report.json").read_text())
-        groups: dict[tuple[float, ...], dict[str, Any]] = {}
-        for r in doc.get("positions", []) if isinstance(doc, dict) else []:
-            pos, err, meth = r.get("position"), r.get("rel_rmse"), r.get("method")
-            if not (isinstance(pos, list) and len(pos) == 3 and isinstance(meth, str) and isinstance(err, (int, float))):
-                continue
-            if not (all(isinstance(v, (int, float)) and math.isfinite(v) for v in pos) and math.isfinite(err)):
-                continue
-            g = groups.setdefault(tuple(pos), {"position": list(map(float, pos)), "street": r.get("street"), "sums": {}})
-            total, n = g["sums"].get(meth, (0.0, 0))
-            g["sums"][meth] = (total + float(err), n + 1)
-        return [{"position": g["position"], "street": g["street"],
-                 "error": {m: t / n for m, (t, n) in sorted(g["sums"].items())}} for g in groups.values()]
+        """The report's evaluation positions (:func:`report_positions`)."""
+        return report_positions(self.report_dir)
 
     def config(self) -> dict[str, Any]:
-        """The page's ``/api/config.json``."""
+        """The page's ``api/config.json`` (URLs relative to the page)."""
         m = self.manifest
         sun = m.sky.sun
         doc = json.loads((self.probe_dir / "manifest.json").read_text())
         return {
-            "files": {"manifest": "/set/manifest.json", "atlas": "/set/" + m.files.extra["probes_atlas"],
-                      "sky": "/set/" + m.files.sky,
-                      **({"scene": "/set/" + m.files.extra["scene_gltf"]}   # the bake's scene.glb, if written
-                         if isinstance(m.files.extra.get("scene_gltf"), str)
-                         and (self.probe_dir / m.files.extra["scene_gltf"]).is_file() else {})},
+            "files": self.files(),
             "resolution": m.resolution, "powers": [_finite(p) for p in m.lobes.powers],
             "sun": None if sun is None else list(map(float, sun.direction)),
             "sun_in_sky": bool(m.sky.sun_baked_in_map),

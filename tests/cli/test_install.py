@@ -33,7 +33,9 @@ def test_installed_package_finds_shaders_and_scenes(tmp_path):
         "             if q.split('/')[0] not in ('shaders', 'city_scenes')));"
         "print(len(r.shader_source('runtime/envcap_runtime.glsl')) > 0);"
         "print(sorted(n for n, _ in s.list_scenes()));"
-        "print(s.load_scene('imported').mesh.triangle_count > 0)"
+        "print(s.load_scene('imported').mesh.triangle_count > 0);"
+        "import envcap.viewer.site as v;"
+        "print(sorted(p.relative_to(v.WEB_DIR).as_posix() for p in v.WEB_DIR.rglob('*') if p.is_file()))"
     ) % str(target)
     env = {"PYTHONPATH": str(target), "PATH": "/usr/bin:/bin"}
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, env=env, timeout=120)
@@ -45,3 +47,6 @@ def test_installed_package_finds_shaders_and_scenes(tmp_path):
     modules = sorted(p.relative_to(REPO / "envcap").as_posix() for p in (REPO / "envcap").rglob("*.py"))
     assert lines[3] == repr(modules), "pyproject.toml's package list misses a package"
     assert lines[4] == "True" and "canyon" in lines[5] and lines[6] == "True"
+    web = sorted(p.relative_to(REPO / "envcap" / "viewer" / "web").as_posix()
+                 for p in (REPO / "envcap" / "viewer" / "web").rglob("*") if p.is_file())
+    assert lines[7] == repr(web), "the installed viewer pages (three.js included: envcap export web copies it) differ"

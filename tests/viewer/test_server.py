@@ -3,6 +3,7 @@ served, nothing else; the config carries the runtime uniforms of the numpy twin;
 the address and serves it."""
 
 import json
+import shutil
 import subprocess
 import sys
 import urllib.error
@@ -26,7 +27,7 @@ def test_serves_page_probe_files_and_api(viewer_server, viewer_probe_dir):
     base = viewer_server.url
     assert base.startswith("http://127.0.0.1:")
     status, ctype, body = get(base)
-    assert status == 200 and ctype.startswith("text/html") and b'src="/web/viewer.js"' in body
+    assert status == 200 and ctype.startswith("text/html") and b'src="web/viewer.js"' in body
     for name in ("viewer.js", "runtime.js", "ktx2.js", "viewer.css"):
         assert get(base + "web/" + name)[0] == 200
     assert get(base + "set/probes_atlas.ktx2")[2] == (viewer_probe_dir / "probes_atlas.ktx2").read_bytes()
@@ -65,7 +66,7 @@ def test_bad_inputs_are_named(tmp_path, canyon_probe_set, viewer_probe_dir):
     with pytest.raises(FileNotFoundError, match="not found"):
         ViewerSite.open(tmp_path / "missing")
     plain = write_probe_set(tmp_path / "plain", canyon_probe_set, exr=False, previews=False, writers=["ktx2"])
-    with pytest.raises(ValueError, match="--webgl2"):
+    with pytest.raises(ValueError, match="no probes_atlas.ktx2, the WebGL2 face atlas"):
         ViewerSite.open(plain)
     with pytest.raises(FileNotFoundError, match="report.json"):
         ViewerSite.open(viewer_probe_dir, report_dir=tmp_path)
@@ -103,7 +104,7 @@ def test_report_plots_are_listed_and_served(tmp_path, viewer_probe_dir):
         Image.new("RGB", (4, 3), (200, 10, 10)).save(rep / name)
     (rep / "notes.txt").write_text("not served\n")
     site = ViewerSite.open(viewer_probe_dir, report_dir=rep)
-    assert site.config()["plots"] == ["/report/error_vs_lobe.png", "/report/worst_canyon_0_mirror.png"]
+    assert site.config()["plots"] == ["report/error_vs_lobe.png", "report/worst_canyon_0_mirror.png"]
     # evaluation positions: grouped by position, mean over lobe powers; NaN and malformed rows dropped
     ev = site.config()["evaluation"]
     assert len(ev) == 1 and ev[0]["position"] == [10.0, 2.0, 1.5]
@@ -117,3 +118,31 @@ def test_report_plots_are_listed_and_served(tmp_path, viewer_probe_dir):
     finally:
         server.shutdown()
         server.server_close()
+
+
+def test_view_finds_the_set_in_a_demo_directory_and_names_the_atlas_command(tmp_path, canyon_probe_set, viewer_probe_dir):
+    """``envcap view`` on ``envcap demo``'s output (``probes/`` + ``evaluation/``) serves the set
+    with its report; on a set without the face atlas it prints the one command that makes it."""
+    from envcap.viewer.site_dir import open_site
+
+    top = tmp_path / "envcap-demo"
+    shutil.copytree(viewer_probe_dir, top / "probes")
+    (top / "evaluation").mkdir()
+    (top / "evaluation" / "report.json").write_text(json.dumps({"positions": []}) + "\n")
+    site = open_site(top)
+    assert site.probe_dir == (top / "probes").resolve() and site.report_dir == (top / "evaluation").resolve()
+    shutil.copytree(viewer_probe_dir, top / "more")
+    with pytest.raises(ValueError, match="holds 2 probe sets"):
+        open_site(top)
+    with pytest.raises(FileNotFoundError, match="no probe set here"):
+        open_site(top / "evaluation")
+    plain = tmp_path / "plain set"
+    from envcap.probeset.store import write_probe_set
+
+    write_probe_set(plain, canyon_probe_set, exr=False, previews=False, writers=["ktx2"])
+    r = subprocess.run([sys.executable, "-m", "envcap", "view", "plain set"], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=60)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 2 and len(lines) == 1, r.stderr
+    assert lines[0].startswith("envcap: error: ") and "no probes_atlas.ktx2" in lines[0]
+    assert "make it with: envcap export web 'plain set' --out 'plain set-web'" in lines[0], lines[0]

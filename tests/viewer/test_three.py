@@ -1,4 +1,4 @@
-"""three.js (r187, vendored in tests/viewer/three/vendor)
+"""three.js (r187, shipped in envcap/viewer/web/three/ for the example page and web exports)
 loads a probe set with ``envcap/viewer/web/three_probes.js`` in headless Chromium: the sky and a
 probe agree in orientation with the manifest's sun, and the runtime chunk in a RawShaderMaterial
 gives the numpy twin's lookups."""
@@ -14,22 +14,21 @@ from envcap.probeset.store import read_probe_set
 from envcap.runtime.chains import ProbeChains
 from envcap.runtime.sampling import sample_street
 from envcap.runtime.street import RuntimeStreet
-from envcap.viewer import ViewerSite, serve
+from envcap.viewer import WEB_DIR, ViewerSite, serve
 
 HERE = Path(__file__).resolve().parent
-THREE = HERE / "three" / "vendor"   # three.js r187 build files (MIT), vendored
+THREE = WEB_DIR / "three"   # three.js r187 build files (MIT), shipped with the viewer
 
 
 @pytest.fixture(scope="module")
 def three_page(chromium, viewer_probe_dir):
     if not (THREE / "three.module.js").is_file():
-        pytest.fail("three.js build files missing from tests/viewer/three/vendor")
+        pytest.fail("three.js build files missing from envcap/viewer/web/three")
 
-    routes = {"/three/three.module.js": THREE / "three.module.js", "/three/three.core.js": THREE / "three.core.js",
-              "/check/three_check.html": HERE / "three_check.html", "/check/three_check.js": HERE / "three_check.js"}
+    routes = {"/three_check.html": HERE / "three_check.html", "/three_check.js": HERE / "three_check.js"}
     server, thread = serve(ViewerSite.open(viewer_probe_dir), extra_routes=routes)
     try:
-        yield open_page(chromium, server.url + "check/three_check.html", "window.check.ready")
+        yield open_page(chromium, server.url + "three_check.html", "window.check.ready")
     finally:
         server.shutdown()
         server.server_close()

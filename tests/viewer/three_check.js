@@ -1,5 +1,8 @@
 // tests/viewer/test_three.py: envcap/viewer/web/three_probes.js in three.js, lookups rendered by a
-// RawShaderMaterial into a float render target and read back.  window.check.lookups(kind, ...)
+// RawShaderMaterial into a float render target and read back.  window.check.lookups(kind, ...);
+// window.check.skyPlan: the sky's format as loaded; window.check.reload(options) loads the set again
+// (options.claimFloatLinear: tell three_probes.js the device filters float textures, whatever it
+// says: the control of tests/viewer/test_sky_fallback.py).
 import * as THREE from "three";
 import { loadProbeSetThree, runtimeChunk, streetUniformValue } from "/web/three_probes.js";
 
@@ -12,10 +15,12 @@ const MAIN = {
   planes_mip: "envcap_sample_nearest(envcap_probes, envcap_sky, x, d, w, envcap_street)",
 };
 
-async function main() {
+async function main(options = {}) {
   const [config, library] = await Promise.all([fetch("/api/config.json").then((r) => r.json()), fetch("/api/runtime.glsl").then((r) => r.text())]);
-  const ps = await loadProbeSetThree(THREE, config.files);
   const renderer = new THREE.WebGLRenderer({ canvas: document.createElement("canvas") });
+  const claimed = { extensions: { has: () => true } };
+  const ps = await loadProbeSetThree(THREE, config.files, { renderer: options.claimFloatLinear ? claimed : renderer });
+  window.check.skyPlan = ps.skyPlan;
   const camera = new THREE.OrthographicCamera(-1, 1, 1, -1, 0, 1);
   const street = config.streets[0], o = street.origin;
   return (kind, xs, ds, ws) => {
@@ -51,6 +56,8 @@ async function main() {
   };
 }
 
+window.check = {};
 const ready = main().catch((e) => { console.error(e.message); throw e; });
-window.check = { ready: ready.then(() => true) };
+window.check.ready = ready.then(() => true);
 ready.then((f) => { window.check.lookups = f; });
+window.check.reload = (options) => main(options).then((f) => { window.check.lookups = f; return window.check.skyPlan; });

@@ -2,8 +2,9 @@
 // GLSL as a RawShaderMaterial chunk.  Pass your three.js namespace (`import * as THREE from
 // "three"`): this module imports nothing from three.js, so it needs no bundler or import map.
 //
-//   const ps = await loadProbeSetThree(THREE, { atlas: "probes_atlas.ktx2", sky: "sky.ktx2" });
-//   const lib = await (await fetch("/api/runtime.glsl")).text();   // or envcap's webgl2 target
+//   const renderer = new THREE.WebGLRenderer();
+//   const ps = await loadProbeSetThree(THREE, { atlas: "probes_atlas.ktx2", sky: "sky.ktx2" }, { renderer });
+//   const lib = await (await fetch("api/runtime.glsl")).text();   // or envcap's webgl2 target
 //   new THREE.RawShaderMaterial({ glslVersion: THREE.GLSL3, vertexShader,
 //       fragmentShader: runtimeChunk(lib) + yourMain,
 //       uniforms: { envcap_probes: { value: ps.atlas }, envcap_sky: { value: ps.sky },
@@ -14,9 +15,24 @@
 // built-in environment-map path (material.envMap, scene.environment) mirrors X for cube textures
 // that are not render targets (flipEnvMap = -1), so do not hand `ps.sky` to it: use the chunk.
 // The probes are a face-atlas DataArrayTexture (three.js and WebGL2 have no cube-map arrays).
-import { fetchKTX2, VK_RGBA16F, VK_RGBA32F } from "./ktx2.js";
+//
+// The sky's format is chosen at load (ktx2.js skyPlan): RGBA32F with LinearMipmapLinear where the
+// device filters float textures (OES_texture_float_linear), else RGBA16F (HalfFloatType) when the
+// sky fits half floats (no sun in the map), else RGBA32F with NEAREST filtering and a console
+// warning.  Pass options.renderer (your WebGLRenderer) so that its extensions decide; without it a
+// throwaway WebGL2 context is asked.  ps.skyPlan says what was chosen.
+import { fetchKTX2, skyFaceData, skyFaces, skyPlan, VK_RGBA16F } from "./ktx2.js";
 
-export async function loadProbeSetThree(THREE, files) {
+// Whether this browser filters RGBA32F textures linearly, asked of a throwaway WebGL2 context.
+function floatLinearHere() {
+  const gl = document.createElement("canvas").getContext("webgl2");
+  const ok = !!(gl && gl.getExtension("OES_texture_float_linear"));
+  const lose = gl && gl.getExtension("WEBGL_lose_context");
+  if (lose) lose.loseContext();
+  return ok;
+}
+
+export async function loadProbeSetThree(THREE, files, options = {}) {
   const [a, s] = await Promise.all([fetchKTX2(files.atlas), fetchKTX2(files.sky)]);
   if (a.vkFormat !== VK_RGBA16F || a.faces !== 1 || a.levels.length !== 1) throw new Error(`${files.atlas}: expected a one-level RGBA16F 2D array`);
   const atlas = new THREE.DataArrayTexture(a.levels[0].data, a.width, a.height, a.layers);
@@ -30,26 +46,29 @@ export async function loadProbeSetThree(THREE, files) {
   atlas.needsUpdate = true;
 
   // files.skyLayer0: a rung-ladder set's R-layer sky array (config.ladder): its layer 0, the manifest's chain
-  if (s.faces !== 6 || (s.layers !== 1 && !files.skyLayer0)) throw new Error(`${files.sky}: expected one cube map, got ${s.layers} layers`);
-  const float = s.vkFormat === VK_RGBA32F;
-  const faceTextures = (lv) => Array.from({ length: 6 }, (_, f) => {
-    const n = lv.width * lv.height * 4;
-    const t = new THREE.DataTexture(lv.data.subarray(f * n, (f + 1) * n), lv.width, lv.height, THREE.RGBAFormat,
-                                    float ? THREE.FloatType : THREE.HalfFloatType);
+  const faces = skyFaces(s, !!files.skyLayer0);
+  const floatLinear = options.renderer ? options.renderer.extensions.has("OES_texture_float_linear") : floatLinearHere();
+  const plan = skyPlan(s, floatLinear, !!files.skyLayer0);
+  if (plan.warning) console.warn(plan.warning);
+  const half = plan.format === "rgba16f";
+  const faceTextures = (k) => faces[k].map((face) => {
+    const lv = s.levels[k];
+    const t = new THREE.DataTexture(skyFaceData(s, plan, face), lv.width, lv.height, THREE.RGBAFormat,
+                                    half ? THREE.HalfFloatType : THREE.FloatType);
     t.flipY = false;
     return t;
   });
-  const sky = new THREE.CubeTexture(faceTextures(s.levels[0]));
-  sky.mipmaps = s.levels.slice(1).map((lv) => ({ image: faceTextures(lv) }));  // levels 1.. (three.js: no base level here)
+  const sky = new THREE.CubeTexture(faceTextures(0));
+  sky.mipmaps = s.levels.slice(1).map((_, k) => ({ image: faceTextures(k + 1) }));  // levels 1.. (three.js: no base level here)
   sky.format = THREE.RGBAFormat;
-  sky.type = float ? THREE.FloatType : THREE.HalfFloatType;
-  sky.minFilter = THREE.LinearMipmapLinearFilter;
-  sky.magFilter = THREE.LinearFilter;
+  sky.type = half ? THREE.HalfFloatType : THREE.FloatType;
+  sky.minFilter = plan.linear ? THREE.LinearMipmapLinearFilter : THREE.NearestMipmapNearestFilter;
+  sky.magFilter = plan.linear ? THREE.LinearFilter : THREE.NearestFilter;
   sky.generateMipmaps = false;
   sky.flipY = false;
   sky.unpackAlignment = 1;
   sky.needsUpdate = true;
-  return { atlas, sky, atlasKtx: a, skyKtx: s };
+  return { atlas, sky, atlasKtx: a, skyKtx: s, skyPlan: plan };
 }
 
 // The runtime library for a RawShaderMaterial with glslVersion GLSL3 (three.js writes the

@@ -2,7 +2,11 @@
 // ray-traced in the fragment shader, shaded by the runtime GLSL of the chosen method; the
 // background is the method's sharpest lookup from the camera), a top-down map, the controls and
 // the evaluation report's plots.  window.envcap is the page's API for tests and benchmarks.
-import { loadProbeSet } from "./ktx2.js";
+// A city (config.city, envcap/viewer/city_site.py): the map shows every street of the city; the
+// view runs on one shard at a time (config.streets, the atlas) and going to a street of another
+// shard loads that shard's config and face atlas (Viewer.loadShard).  URLs are relative to the
+// page: the same files work from `envcap view` and from a static `envcap export web` site.
+import { fetchKTX2, loadProbeSet, skyPlanName, uploadAtlas } from "./ktx2.js";
 import { FULLSCREEN_VS, LookupRunner, bindProbes, fragmentSource, program, setStreet } from "./runtime.js";
 import { loadGlb } from "./gltf.js";
 import { DEPTH_AB, SceneRaster } from "./scene_raster.js";
@@ -86,6 +90,8 @@ class Viewer {
     this.cfg = config; this.lib = library; this.gl = gl; this.tex = textures;
     this.methods = config.methods;
     this.method = this.methods.find((m) => m.name === "planes_mip") || this.methods[0];
+    this.shard = config.city ? config.city.shard : 0;   // the loaded shard of a city
+    this.loading = null;                               // a shard load in flight (a promise)
     this.programs = new Map();
     this.vao = gl.createVertexArray();
     this.runner = new LookupRunner(gl, library, textures);
@@ -106,10 +112,28 @@ class Viewer {
     return s > 0 ? 0.5 / (s / n) : 1;
   }
   setScene(mesh) { this.scene = new SceneRaster(this.gl, mesh, this.skyMean, this.cfg.sun); }
-  streetIndex() {  // the street whose box (in its own frame) is nearest to the camera
+  streetIndex(streets = this.cfg.streets) {  // the street whose box (in its own frame) is nearest to the camera
     let best = 0, bd = Infinity;
-    this.cfg.streets.forEach((s, i) => { const dist = distanceToStreet(s, this.cam.pos); if (dist < bd) { bd = dist; best = i; } });
+    streets.forEach((s, i) => { const dist = distanceToStreet(s, this.cam.pos); if (dist < bd) { bd = dist; best = i; } });
     return best;
+  }
+  // A city: load the shard of the street the camera is in, unless loaded or loading.
+  followShard() {
+    if (!this.cfg.city || this.loading) return;
+    const s = this.cfg.city.streets[this.streetIndex(this.cfg.city.streets)].shard;
+    if (s !== this.shard) this.loading = this.loadShard(s).finally(() => { this.loading = null; });
+  }
+  async loadShard(s) {  // shard s's config (streets with uniforms) and face atlas; the sky is the city's
+    status(`loading shard ${s + 1} of ${this.cfg.city.shards.length} ...`);
+    const sc = await fetch(this.cfg.city.shards[s].config).then((r) => r.json());
+    const ktx = await fetchKTX2(sc.files.atlas);
+    const atlas = uploadAtlas(this.gl, ktx);
+    this.gl.deleteTexture(this.tex.atlas);
+    this.tex.atlas = atlas; this.tex.atlasKtx = ktx;
+    this.cfg.streets = sc.streets; this.cfg.files.atlas = sc.files.atlas;
+    this.shard = this.cfg.city.shard = s;
+    status(statusLine(this.cfg, this.tex, this));
+    this.render();
   }
   forward() { const { yaw, pitch } = this.cam; return [Math.cos(pitch) * Math.cos(yaw), Math.sin(pitch), Math.cos(pitch) * Math.sin(yaw)]; }
   placeGroup() {  // the spheres 7 m in front of the camera, across the view
@@ -126,6 +150,7 @@ class Viewer {
     return this.programs.get(m.name);
   }
   render() {
+    this.followShard();
     const gl = this.gl, canvas = gl.canvas;
     const si = this.streetIndex(), st = this.cfg.streets[si], o = st.origin;
     const prog = this.programFor(this.method);
@@ -166,7 +191,8 @@ class Viewer {
     gl.disable(gl.DEPTH_TEST);
     this.cfg.currentMethod = this.method.name;
     drawMap($("map"), this.cfg, this.cam, this.group);
-    let where = `street ${st.name}${st.frame.yaw_deg ? ` (${st.frame.yaw_deg.toFixed(1)}\u00b0)` : ""}  x=${this.cam.pos.map((v) => v.toFixed(1)).join(", ")} m  method ${this.method.name}`;
+    let where = `street ${st.name}${st.frame.yaw_deg ? ` (${st.frame.yaw_deg.toFixed(1)}\u00b0)` : ""}` +
+      (this.cfg.city ? ` (shard ${this.shard + 1} of ${this.cfg.city.shards.length})` : "") + `  x=${this.cam.pos.map((v) => v.toFixed(1)).join(", ")} m  method ${this.method.name}`;
     const ev = nearestEvaluation(this.cfg.evaluation || [], this.cam.pos);
     if (ev && ev.dist < 5 && ev.e.error[this.method.name] !== undefined) {
       where += ` | evaluation position ${ev.dist.toFixed(1)} m away: rel. RMSE ${(100 * ev.e.error[this.method.name]).toFixed(1)} %`;
@@ -247,9 +273,11 @@ function halfToFloat(h) {
 }
 
 // The top-down map: streets (between their facades), probes, the spheres, the camera.
+function mapStreets(cfg) { return cfg.city ? cfg.city.streets : cfg.streets; }  // a city: all its streets
+
 function mapTransform(canvas, cfg) {  // bounds of the streets' world corners
   let x0 = Infinity, x1 = -Infinity, z0 = Infinity, z1 = -Infinity;
-  for (const s of cfg.streets) {
+  for (const s of mapStreets(cfg)) {
     for (const [x, z] of s.corners) { x0 = Math.min(x0, x); x1 = Math.max(x1, x); z0 = Math.min(z0, z); z1 = Math.max(z1, z); }
   }
   const pad = 10, sc = Math.min((canvas.width - 2 * pad) / (x1 - x0 || 1), (canvas.height - 2 * pad) / (z1 - z0 || 1));
@@ -260,10 +288,12 @@ function mapTransform(canvas, cfg) {  // bounds of the streets' world corners
 function drawMap(canvas, cfg, cam, group) {
   const c = canvas.getContext("2d"), T = mapTransform(canvas, cfg);
   c.fillStyle = "#222"; c.fillRect(0, 0, canvas.width, canvas.height);
-  for (const s of cfg.streets) {  // the street between its facades: a rectangle turned with its frame
+  for (const s of mapStreets(cfg)) {  // the street between its facades: a rectangle turned with its frame
     c.fillStyle = "#555"; c.strokeStyle = "#555"; c.lineWidth = 2; c.beginPath();
     s.corners.forEach(([x, z], k) => { const [u, v] = T.to(x, z); if (k === 0) c.moveTo(u, v); else c.lineTo(u, v); });
     c.closePath(); c.fill(); c.stroke();
+  }
+  for (const s of cfg.streets) {  // the probes (a city: of the loaded shard)
     c.fillStyle = "#fc3";
     for (const p of s.probes) { const [u, v] = T.to(p.position[0], p.position[2]); c.beginPath(); c.arc(u, v, 3, 0, 2 * Math.PI); c.fill(); }
   }
@@ -337,7 +367,7 @@ async function main() {
   const gl = canvas.getContext("webgl2", { antialias: false, preserveDrawingBuffer: true });
   if (!gl) throw new Error("this browser has no WebGL2");
   const [config, library] = await Promise.all([
-    fetch("/api/config.json").then((r) => r.json()), fetch("/api/runtime.glsl").then((r) => r.text())]);
+    fetch("api/config.json").then((r) => r.json()), fetch("api/runtime.glsl").then((r) => r.text())]);
   status("loading probes ...");
   const textures = await loadProbeSet(gl, config.files, { skyLayer0: !!config.ladder });
   const viewer = new Viewer(config, library, gl, textures);
@@ -352,11 +382,18 @@ async function main() {
   }
   $("plots_title").hidden = config.plots.length === 0;
   viewer.render();
-  status(`${config.scene || "probe set"}: ${config.streets.length} street(s), ${config.streets.reduce((n, s) => n + s.probes.length, 0)} probes, ` +
-         `${config.resolution}\u00b2 faces, sky ${textures.skyFloat32 ? "RGBA32F" : "RGBA16F"}` +
-         (config.ladder ? `, rung ladder ${config.ladder.mode}: shown through ${config.ladder.shown}` : "") +
-         (viewer.scene ? `, scene.glb ${viewer.scene.triangles} triangles` : ""));
+  status(statusLine(config, textures, viewer));
   return viewer;
+}
+
+function statusLine(config, textures, viewer) {
+  const where = config.city
+    ? `a city of ${config.city.streets.length} streets in ${config.city.shards.length} shards (shard ${viewer.shard + 1}: ` +
+      `${config.streets.length} street(s), ${config.streets.reduce((n, s) => n + s.probes.length, 0)} probes)`
+    : `${config.streets.length} street(s), ${config.streets.reduce((n, s) => n + s.probes.length, 0)} probes`;
+  return `${config.scene || "probe set"}: ${where}, ${config.resolution}\u00b2 faces, sky ${skyPlanName(textures.skyPlan)}` +
+         (config.ladder ? `, rung ladder ${config.ladder.mode}: shown through ${config.ladder.shown}` : "") +
+         (viewer.scene ? `, scene.glb ${viewer.scene.triangles} triangles` : "");
 }
 
 const ready = main().catch((err) => { status("error: " + err.message); console.error(err.message); throw err; });
@@ -370,4 +407,5 @@ ready.then((v) => {
   window.envcap.bench = (...a) => v.bench(...a);
   window.envcap.methods = () => v.methods.map((m) => m.name);
   window.envcap.mapPoint = (x, z) => mapTransform($("map"), v.cfg).to(x, z);  // world plan point -> map pixel
+  window.envcap.settled = () => Promise.resolve(v.loading).then(() => v.shard);  // a city: the shard once loaded
 });

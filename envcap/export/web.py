@@ -1,0 +1,107 @@
+"""Export target ``web``: a probe set as a static site for WebGL2 and three.js, served by any static
+file server (``python3 -m http.server``), no envcap process (``docs/engines.md``, section 7).
+
+The site is exactly what ``envcap view`` serves (:meth:`envcap.viewer.site.ViewerSite.routes`),
+written as files; the page's URLs are relative, so it works from any folder of any server::
+
+    index.html            the viewer page (map, street view, method switch)
+    three.html            the probe set in three.js (web/three_example.js through web/three_probes.js)
+    web/                  the pages' ES modules (ktx2.js, runtime.js, three_probes.js, ...)
+    three/                three.js r187 (three.module.js, three.core.js; MIT, three.LICENSE)
+    api/config.json       streets with their runtime uniforms (EnvcapStreet), methods, sun, lobe powers
+    api/runtime.glsl      the runtime GLSL, WebGL2 target (GLSL ES 3.00, includes resolved)
+    set/                  the probe set: manifest.json, probes.ktx2, sky.ktx2, probes_atlas.ktx2
+                          (+ scene.glb); a city: city.json, street_map.ktx2, set/shards/NAME/...
+    report/               the evaluation report's report.json and plots, if there is one
+    README.md             this list and how to serve it
+
+``set/`` keeps a complete probe set (``envcap view SITE`` reads it) but only the files the web
+reads: the manifest is rewritten to list just them (per-probe EXRs, previews and lat-long maps
+stay behind).  A set baked without ``--webgl2`` gets its face atlas made here from
+``probes.ktx2`` (:func:`envcap.formats.webgl2_writer.write_probe_atlas`, the bake's own writer).
+"""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+from envcap.formats.webgl2_writer import write_probe_atlas
+from envcap.probeset.city_index import INDEX_FILE
+from envcap.probeset.manifest import Files, write_manifest
+from envcap.probeset.store import read_probe_set
+from envcap.viewer.city_site import CitySite
+from envcap.viewer.site import ViewerSite
+from envcap.viewer.site_dir import open_site
+
+SUMMARY = "a static site for WebGL2 / three.js: probe files, street uniforms (JSON), runtime GLSL, example pages"
+KIND = "web-export"
+WEB_FILES = ("probes", "sky", "probes_atlas", "scene_gltf")
+"""The manifest ``files`` entries a web export keeps."""
+
+README = """# envcap web export
+
+A probe set as a static site: serve this folder with any static file server, e.g. from inside it
+
+    python3 -m http.server 8000
+
+and open http://localhost:8000/ (the viewer) or http://localhost:8000/three.html (three.js).
+Browsers do not run ES modules from file:// URLs, so a server is needed, but no envcap process.
+
+* `index.html`, `three.html`, `web/`: the pages (`web/three_probes.js` loads the probe set into
+  three.js; `web/three_example.js` is the example using it);
+* `three/`: three.js r187 (MIT, `three/three.LICENSE`);
+* `api/config.json`: the streets and their runtime uniforms (`streets[i].uniforms.nominal`, the
+  `EnvcapStreet` struct), the methods, the sun, the lobe powers;
+* `api/runtime.glsl`: the runtime GLSL for WebGL2 (GLSL ES 3.00);
+* `set/`: the probe set ({what}){report}.
+
+Made by `envcap export web` (envcap docs/engines.md, section 7).
+"""
+
+
+def _write_set(site: ViewerSite, dest: Path) -> None:
+    """The web files of one probe set into ``dest``: copied, the face atlas made if missing, the
+    manifest listing just them."""
+    dest.mkdir(parents=True, exist_ok=True)
+    files = site.manifest.files
+    entries: dict[str, str] = {}
+    for key in WEB_FILES:
+        name = getattr(files, key, None) if key in ("probes", "sky") else files.extra.get(key)
+        if isinstance(name, str) and (site.probe_dir / name).is_file():
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(site.probe_dir / name, dest / name)
+            entries[key] = name
+    if "probes_atlas" not in entries:
+        entries.update(write_probe_atlas(dest, read_probe_set(site.probe_dir, distance=False)))
+    write_manifest(dest / "manifest.json", replace(site.manifest, files=Files.from_json(entries)))
+
+
+def write_web_site(source: Path, out: Path, report: Path | None) -> str:
+    """Write the web export of the probe set (or city, or directory holding one) ``source`` into
+    ``out`` (module docstring); returns how to serve it (``{out}``: the output's final path)."""
+    site = open_site(source, report, require_atlas=False)
+    sets: tuple[ViewerSite, ...] = site.shards if isinstance(site, CitySite) else (site,)
+    for s in sets:
+        _write_set(s, out / s.prefix)
+    if isinstance(site, CitySite):
+        shutil.copyfile(site.probe_dir / INDEX_FILE, out / "set" / INDEX_FILE)
+        sm = site.index.street_map
+        if sm is not None and (site.probe_dir / sm.file).is_file():
+            shutil.copyfile(site.probe_dir / sm.file, out / "set" / sm.file)
+    for route, body in site.routes().items():
+        if route.startswith("/set/"):
+            continue   # written above
+        path = out / (route.lstrip("/") or "index.html")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(body, Path):
+            shutil.copyfile(body, path)
+        else:
+            path.write_bytes(body if isinstance(body, bytes) else body())
+    what = (f"a city of {len(site.index.streets)} streets in {len(sets)} shards" if isinstance(site, CitySite)
+            else f"{site.manifest.layer_count} probes, {site.manifest.resolution}^2 faces")
+    (out / "README.md").write_text(README.format(
+        what=what, report="; `report/`: its evaluation report" if site.report_dir else ""))
+    return ("serve it with any static server, e.g.  python3 -m http.server 8000 --directory {out}\n"
+            "and open http://localhost:8000/ (the viewer) or http://localhost:8000/three.html (three.js)")
