@@ -7,6 +7,11 @@ one list that ``envcap view`` serves and ``envcap export web`` writes as static 
 URLs are relative (``set/manifest.json``, ``report/NAME``, ``api/config.json``), so the site works
 from any directory of any static server.
 
+A probe set is untrusted input: a route's file is always a path resolved inside the set
+(:meth:`ViewerSite.set_file`, :func:`envcap.core.contained_path.resolve_inside`), and a set whose
+manifest names a file outside it (an absolute path, ``..``, a symbolic link leading out) is
+refused when opened; a report's plot that links outside it is left out (:func:`report_files`).
+
 Street uniforms are :meth:`envcap.runtime.street.RuntimeStreet.uniforms` of each manifest street
 (nominal and fitted plane sets: ``frame`` and the slopes in ``planes[i].w`` included), so the page
 uploads exactly what the numpy twin and the desktop GLSL use; a street of more than ``MAX_PROBES``
