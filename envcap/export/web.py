@@ -15,6 +15,11 @@ written as files; the page's URLs are relative, so it works from any folder of a
     report/               the evaluation report's report.json and plots, if there is one
     README.md             this list and how to serve it
 
+A probe set is untrusted input: every file copied is one the set's manifest (or ``city.json``)
+names, resolved inside the set (:meth:`envcap.viewer.site.ViewerSite.set_file`, the resolver the
+viewer's server uses); a set naming a file outside it, by an absolute path, ``..`` or a symbolic
+link, is refused before anything is written.
+
 ``set/`` keeps a complete probe set (``envcap view SITE`` reads it) but only the files the web
 reads: the manifest is rewritten to list just them (per-probe EXRs, previews and lat-long maps
 stay behind).  A set baked without ``--webgl2`` gets its face atlas made here from
@@ -28,7 +33,6 @@ from dataclasses import replace
 from pathlib import Path
 
 from envcap.formats.webgl2_writer import write_probe_atlas
-from envcap.probeset.city_index import INDEX_FILE
 from envcap.probeset.manifest import Files, write_manifest
 from envcap.probeset.store import read_probe_set
 from envcap.viewer.city_site import CitySite
@@ -69,9 +73,12 @@ def _write_set(site: ViewerSite, dest: Path) -> None:
     entries: dict[str, str] = {}
     for key in WEB_FILES:
         name = getattr(files, key, None) if key in ("probes", "sky") else files.extra.get(key)
-        if isinstance(name, str) and (site.probe_dir / name).is_file():
+        if not isinstance(name, str):
+            continue
+        src = site.set_file(name, key)   # resolved inside the set (the manifest is untrusted), else OutsideFolder
+        if src.is_file():
             (dest / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(site.probe_dir / name, dest / name)
+            shutil.copyfile(src, dest / name)
             entries[key] = name
     if "probes_atlas" not in entries:
         entries.update(write_probe_atlas(dest, read_probe_set(site.probe_dir, distance=False)))
@@ -86,10 +93,9 @@ def write_web_site(source: Path, out: Path, report: Path | None) -> str:
     for s in sets:
         _write_set(s, out / s.prefix)
     if isinstance(site, CitySite):
-        shutil.copyfile(site.probe_dir / INDEX_FILE, out / "set" / INDEX_FILE)
-        sm = site.index.street_map
-        if sm is not None and (site.probe_dir / sm.file).is_file():
-            shutil.copyfile(site.probe_dir / sm.file, out / "set" / sm.file)
+        for name, path in site.city_files().items():   # city.json and the street map, resolved inside the city
+            (out / "set" / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(path, out / "set" / name)
     for route, body in site.routes().items():
         if route.startswith("/set/"):
             continue   # written above

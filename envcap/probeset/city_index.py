@@ -37,6 +37,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from envcap import __version__
+from envcap.core.contained_path import name_problem
 from envcap.core.street_frame import OptionalFrame, frame_to_world
 from envcap.probeset.float32_range import check_number_ranges
 from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
@@ -150,7 +151,8 @@ class CityIndex:
 def check_city_index(ix: CityIndex, where: str = INDEX_FILE) -> None:
     """Rules beyond types: fixed fields, numbers in float32/int32 range, unique street names,
     shards covering city layers ``0..layer_count-1`` in order without gaps, each street inside
-    its shard's layer range and listed by it, shard paths relative and inside the index."""
+    its shard's layer range and listed by it, shard paths and the street map's file relative and
+    inside the index (:func:`envcap.core.contained_path.name_problem`)."""
     for name, want in (("units", "meters"), ("up_axis", "+Y")):
         if getattr(ix, name) != want:
             raise ManifestError(f"{where}: {name} is {getattr(ix, name)!r}, expected {want!r}")
@@ -163,10 +165,12 @@ def check_city_index(ix: CityIndex, where: str = INDEX_FILE) -> None:
         if sh.layers != (first, sh.layers[1]) or sh.layers[1] < 1:
             raise ManifestError(f"{where}: shards[{i}].layers must start at {first} and hold >= 1 layer, got {list(sh.layers)}")
         first += sh.layers[1]
-        p = Path(sh.path)
-        if p.is_absolute() or ".." in p.parts or not p.parts or sh.path in paths:
-            raise ManifestError(f"{where}: shards[{i}].path must be a unique relative path inside the city, got {sh.path!r}")
+        if name_problem(sh.path) is not None or sh.path in paths:
+            raise ManifestError(f"{where}: shards[{i}].path must be a unique relative path inside the city, got {sh.path!r}"
+                                + (f" ({name_problem(sh.path)})" if name_problem(sh.path) else ""))
         paths.add(sh.path)
+    if ix.street_map is not None and (problem := name_problem(ix.street_map.file)) is not None:
+        raise ManifestError(f"{where}: street_map.file: {ix.street_map.file!r} is not a path inside the city: {problem}")
     if first != ix.layer_count:
         raise ManifestError(f"{where}: shards hold {first} layers, layer_count says {ix.layer_count}")
     names = set()

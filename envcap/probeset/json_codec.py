@@ -199,6 +199,10 @@ def read_json_file(path: str | os.PathLike[str], what: str) -> Any:
         return json.loads(p.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise ManifestError(f"{p}: not valid JSON ({e})") from e
+    except RecursionError:   # arrays or objects nested thousands deep
+        raise ManifestError(f"{p}: not valid JSON for envcap (nested too deep)") from None
+    except ValueError as e:  # an integer literal past Python's digit limit (sys.get_int_max_str_digits)
+        raise ManifestError(f"{p}: not valid JSON for envcap ({str(e).split(';')[0]})") from None
 
 
 def json_text(obj: Any) -> str:

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from envcap import __version__
+from envcap.core.contained_path import name_problem
 from envcap.core.street_frame import OptionalFrame, world_to_frame
 from envcap.probeset.float32_range import check_number_ranges, positive_in_float32
 from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
@@ -320,9 +321,17 @@ _FIXED = ("format", "version", "units", "up_axis", "handedness", "color")
 
 
 def _check_files(files: Files, where: str) -> None:
+    """Every entry a path or a list of paths, each inside the set (a manifest is untrusted input:
+    :func:`envcap.core.contained_path.name_problem`, no absolute path, no ``..``)."""
+    entries: dict[str, Any] = {f.name: getattr(files, f.name) for f in fields(Files) if f.name != "extra"}
     for key, value in files.extra.items():
         if not (isinstance(value, str) or (isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value))):
             raise ManifestError(f"{where}.{key}: must be a path or a list of paths, got {value!r}")
+        entries[key] = value
+    for key, value in entries.items():
+        for name in ([value] if isinstance(value, str) else value or ()):
+            if (problem := name_problem(name)) is not None:
+                raise ManifestError(f"{where}.{key}: {name!r} is not a path inside the probe set: {problem}")
 
 
 def _check_planes(p: Planes, where: str) -> None:

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from envcap.core.contained_path import resolve_inside
 from envcap.core.input_path import require_dir
 from envcap.formats.exr_cube import read_exr_cube
 from envcap.formats.ktx2 import read_ktx2
@@ -119,7 +120,9 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
     one line naming the file: every number of the manifest within float32 range, every texel of
     ``probes.ktx2`` and ``sky.ktx2`` finite with RGB >= 0 and alpha in [0, 1]
     (:func:`envcap.probeset.probe_set.check_texels`: the layer and level at fault), distances
-    finite and >= 0.
+    finite and >= 0.  A file the manifest names is read only from inside the set: a name or a
+    symbolic link that leads outside it is a ``ValueError`` naming the entry
+    (:func:`envcap.core.contained_path.resolve_inside`).
     """
     root = require_dir(path, "probe-set directory")
     if (root / INDEX_FILE).is_file() and not (root / MANIFEST_FILE).is_file():
@@ -132,7 +135,10 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
     files = manifest.files
     if files.probes is None or files.sky is None:
         raise ValueError(f"{mpath}: files.{'probes' if files.probes is None else 'sky'} missing")
-    levels, info = read_ktx2(root / files.probes)
+    def inside(name: str, key: str) -> Path:   # a manifest is untrusted: never follow a name or a link out of the set
+        return resolve_inside(root, name, f"{mpath}: files.{key}")
+
+    levels, info = read_ktx2(inside(files.probes, "probes"))
     per = 1 if manifest.ladder is None else manifest.ladder.per_level   # a rung ladder: per layers per probe
     if info["fmt"] != "rgba16f" or not info["layered"]:
         raise ValueError(f"{files.probes}: expected an RGBA16F cube-map array, got {info['fmt']} layered={info['layered']}")
@@ -142,7 +148,7 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
             f"manifest says {layers} probes{f' x {per} rungs' if per > 1 else ''} x {len(manifest.levels)} levels of {n}"
         )
     check_texels(levels, True, str(root / files.probes))
-    sky, sinfo = read_ktx2(root / files.sky)
+    sky, sinfo = read_ktx2(inside(files.sky, "sky"))
     rungs = manifest.ladder is not None
     if sinfo["fmt"] != "rgba32f" or sinfo["layered"] != rungs or (rungs and sinfo["layers"] != per):
         raise ValueError(f"{files.sky}: expected {f'a {per}-layer RGBA32F cube-map array (manifest.ladder)' if rungs else 'a plain RGBA32F cube map'}, "
@@ -150,13 +156,13 @@ def read_probe_set(path: str | os.PathLike[str], *, distance: bool = True) -> Pr
     check_texels(sky, rungs, str(root / files.sky))
     dist = None
     if distance and not files.exr and files.extra.get("inverse_distance"):
-        dist = distance_from_inverse(root / files.extra["inverse_distance"], (layers, 6, n, n))
+        dist = distance_from_inverse(inside(files.extra["inverse_distance"], "inverse_distance"), (layers, 6, n, n))
     if distance and files.exr:
         if len(files.exr) != layers:
             raise ValueError(f"{mpath}: files.exr must list one EXR per probe ({layers})")
         ds = []
         for name in files.exr:
-            _, d = read_exr_cube(root / name)
+            _, d = read_exr_cube(inside(name, "exr"))
             if d is None or d.shape != (6, n, n):
                 raise ValueError(f"{name}: missing or mis-sized Z (distance) channel")
             ds.append(d)
@@ -175,5 +181,6 @@ def read_city_probe_set(path: str | os.PathLike[str], *, distance: bool = True) 
     root = Path(path)
     root = root.parent if root.name == INDEX_FILE and root.is_file() else root
     index = read_city_index(root)
-    shards = [read_probe_set(root / sh.path, distance=distance) for sh in index.shards]
+    shards = [read_probe_set(resolve_inside(root, sh.path, f"{root / INDEX_FILE}: shards[{i}].path", "the city"),
+                             distance=distance) for i, sh in enumerate(index.shards)]
     return merge_shards(index, shards, str(root / INDEX_FILE))

@@ -18,9 +18,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from envcap.core.contained_path import resolve_inside
 from envcap.probeset.city_index import INDEX_FILE, CityIndex, read_city_index
 from envcap.viewer.site import MissingAtlas, Routes, ViewerSite, find_report, page_routes, report_plots, \
-    report_positions, report_routes, runtime_glsl_webgl2, street_plan
+    report_files, report_positions, report_routes, runtime_glsl_webgl2, street_plan
 
 
 @dataclass(frozen=True)
@@ -39,11 +40,12 @@ class CitySite:
         """Check and open the city at ``city_dir`` and each of its shards (:class:`MissingAtlas`
         naming the city when a shard has no face atlas and ``require_atlas``)."""
         root = Path(city_dir).resolve()
-        index = read_city_index(root / INDEX_FILE)
+        index = read_city_index(resolve_inside(root, INDEX_FILE, str(root), "the city"))
         shards = []
-        for sh in index.shards:
+        for i, sh in enumerate(index.shards):
+            shard_dir = resolve_inside(root, sh.path, f"{root / INDEX_FILE}: shards[{i}].path", "the city")
             try:
-                shards.append(ViewerSite.open(root / sh.path, require_atlas=require_atlas, prefix=f"set/{sh.path}/",
+                shards.append(ViewerSite.open(shard_dir, require_atlas=require_atlas, prefix=f"set/{sh.path}/",
                                               find_report_dir=False))
             except MissingAtlas:
                 raise MissingAtlas(root) from None
@@ -53,7 +55,23 @@ class CitySite:
         rep = Path(report_dir).resolve() if report_dir is not None else find_report(root)
         if rep is not None and not (rep / "report.json").is_file():
             raise FileNotFoundError(f"{rep}: not an evaluation report (no report.json)")
-        return CitySite(root, index, tuple(shards), rep)
+        site = CitySite(root, index, tuple(shards), rep)
+        site.city_files()   # each inside the city: OutsideFolder otherwise
+        report_files(rep)
+        return site
+
+    def city_files(self) -> dict[str, Path]:
+        """The city's own files by name, resolved inside :attr:`probe_dir`
+        (:func:`envcap.core.contained_path.resolve_inside`: ``OutsideFolder`` for a name or a link
+        leading outside it): ``city.json`` and, when on disk, the street map."""
+        where = str(self.probe_dir / INDEX_FILE)
+        out = {INDEX_FILE: resolve_inside(self.probe_dir, INDEX_FILE, str(self.probe_dir), "the city")}
+        sm = self.index.street_map
+        if sm is not None:
+            path = resolve_inside(self.probe_dir, sm.file, f"{where}: street_map.file", "the city")
+            if path.is_file():
+                out[sm.file] = path
+        return out
 
     def map_streets(self) -> list[dict[str, Any]]:
         """Every street of the city for the map: name, axis, extent and nominal planes (frame
@@ -86,10 +104,7 @@ class CitySite:
         shard's files under ``set/<shard path>/``, the report, ``api/config.json``,
         ``api/shards/S.json`` and ``api/runtime.glsl``."""
         out = page_routes()
-        out["/set/" + INDEX_FILE] = self.probe_dir / INDEX_FILE
-        sm = self.index.street_map
-        if sm is not None and (self.probe_dir / sm.file).is_file():
-            out["/set/" + sm.file] = self.probe_dir / sm.file
+        out.update({"/set/" + name: path for name, path in self.city_files().items()})
         for s, sh in enumerate(self.shards):
             out.update(sh.set_routes())
             out[f"/api/shards/{s}.json"] = lambda s=s: json.dumps(self.shard_config(s), allow_nan=False).encode()

@@ -7,6 +7,11 @@ one list that ``envcap view`` serves and ``envcap export web`` writes as static 
 URLs are relative (``set/manifest.json``, ``report/NAME``, ``api/config.json``), so the site works
 from any directory of any static server.
 
+A probe set is untrusted input: a route's file is always a path resolved inside the set
+(:meth:`ViewerSite.set_file`, :func:`envcap.core.contained_path.resolve_inside`), and a set whose
+manifest names a file outside it (an absolute path, ``..``, a symbolic link leading out) is
+refused when opened; a report's plot that links outside it is left out (:func:`report_files`).
+
 Street uniforms are :meth:`envcap.runtime.street.RuntimeStreet.uniforms` of each manifest street
 (nominal and fitted plane sets: ``frame`` and the slopes in ``planes[i].w`` included), so the page
 uploads exactly what the numpy twin and the desktop GLSL use; a street of more than ``MAX_PROBES``
@@ -34,9 +39,11 @@ from typing import Any, Callable, Union
 
 import numpy as np
 
+from envcap.core.contained_path import OutsideFolder, resolve_inside
 from envcap.core.resources import expand_includes
 from envcap.core.street_frame import OptionalFrame, frame_to_world, from_frame, plan_rotation
 from envcap.formats.webgl2_writer import ATLAS_FILE
+from envcap.probeset.json_codec import read_json_file
 from envcap.probeset.manifest import Manifest, read_manifest
 from envcap.runtime import methods as runtime_methods
 from envcap.runtime.limits import MAX_PROBES
@@ -96,13 +103,33 @@ def _finite(v: float) -> float | None:
 
 def find_report(probe_dir: Path) -> Path | None:
     """An evaluation report beside a probe set: ``probe_dir`` itself or one of its direct
-    subdirectories holding ``report.json`` (first by name), else ``None``."""
+    subdirectories holding ``report.json`` (first by name; a link to a folder outside
+    ``probe_dir`` is not one), else ``None``."""
     if (probe_dir / "report.json").is_file():
         return probe_dir
+    base = probe_dir.resolve()
     for sub in sorted(p for p in probe_dir.iterdir() if p.is_dir()):
-        if (sub / "report.json").is_file():
+        if (sub / "report.json").is_file() and sub.resolve().is_relative_to(base):
             return sub
     return None
+
+
+def report_files(report_dir: Path | None) -> dict[str, Path]:
+    """An evaluation report's ``report.json`` and PNG plots by name, each resolved inside
+    ``report_dir`` (:func:`envcap.core.contained_path.resolve_inside`): a plot that is a link
+    leading outside is left out; a ``report.json`` that does raises
+    :class:`~envcap.core.contained_path.OutsideFolder`.  Empty without a report."""
+    if report_dir is None:
+        return {}
+    out = {"report.json": resolve_inside(report_dir, "report.json", str(report_dir), "the report")}
+    for p in sorted(report_dir.glob("*.png")):
+        try:
+            path = resolve_inside(report_dir, p.name, str(report_dir), "the report")
+        except OutsideFolder:
+            continue
+        if path.is_file():
+            out[p.name] = path
+    return out
 
 
 def page_routes() -> Routes:
@@ -115,11 +142,9 @@ def page_routes() -> Routes:
 
 
 def report_routes(report_dir: Path | None) -> Routes:
-    """``/report/NAME``: a report's ``report.json`` and PNG plots (none without a report)."""
-    if report_dir is None:
-        return {}
-    return {"/report/report.json": report_dir / "report.json",
-            **{f"/report/{p.name}": p for p in sorted(report_dir.glob("*.png"))}}
+    """``/report/NAME``: a report's ``report.json`` and PNG plots (:func:`report_files`; none
+    without a report)."""
+    return {f"/report/{name}": path for name, path in report_files(report_dir).items()}
 
 
 def street_plan(st: OptionalFrame, axis: str, start: float, end: float, facades: tuple[float, float]) -> dict[str, Any]:
@@ -142,9 +167,7 @@ def street_plan(st: OptionalFrame, axis: str, start: float, end: float, facades:
 
 def report_plots(report_dir: Path | None) -> list[str]:
     """URLs of the report's PNG plots (``report/NAME``), plots first, then worst positions."""
-    if report_dir is None:
-        return []
-    names = sorted(p.name for p in report_dir.glob("*.png"))
+    names = sorted(n for n in report_files(report_dir) if n.endswith(".png"))
     return ["report/" + n for n in sorted(names, key=lambda n: (n.startswith("worst_"), n))]
 
 
@@ -154,7 +177,7 @@ def report_positions(report_dir: Path | None) -> list[dict[str, Any]]:
     over its lobe powers and sun variants}}``; rows without a finite position or error are skipped."""
     if report_dir is None:
         return []
-    doc = json.loads((report_dir / "report.json").read_text())
+    doc = read_json_file(report_files(report_dir)["report.json"], "evaluation report")
     groups: dict[tuple[float, ...], dict[str, Any]] = {}
     for r in doc.get("positions", []) if isinstance(doc, dict) else []:
         pos, err, meth = r.get("position"), r.get("rel_rmse"), r.get("method")
@@ -204,12 +227,13 @@ class ViewerSite:
         root = Path(probe_dir).resolve()
         if not root.is_dir():
             raise FileNotFoundError(f"probe-set directory not found: {root}")
-        m = read_manifest(root / "manifest.json")
-        if m.files.sky is None or not (root / m.files.sky).is_file():
-            raise FileNotFoundError(f"{root}: sky file missing")
+        m = read_manifest(resolve_inside(root, "manifest.json", str(root)))
         site = ViewerSite(root, m, None, prefix)
+        on_disk = site.manifest_files()   # every name resolved inside the set: OutsideFolder otherwise
+        if m.files.sky is None or m.files.sky not in on_disk:
+            raise FileNotFoundError(f"{root}: sky file missing")
         if site.has_atlas:
-            layers = _ktx2_layer_count(root / site.atlas_name)
+            layers = _ktx2_layer_count(site.set_file(site.atlas_name, "probes_atlas"))
             if layers != 6 * m.layer_count:
                 why = (f" (a rung ladder of {m.ladder.per_level} rungs per level: the page reads one chain per probe, "
                        "layer r = 0)" if m.ladder is not None else "")
@@ -220,6 +244,7 @@ class ViewerSite:
         rep = Path(report_dir).resolve() if report_dir is not None else (find_report(root) if find_report_dir else None)
         if rep is not None and not (rep / "report.json").is_file():
             raise FileNotFoundError(f"{rep}: not an evaluation report (no report.json)")
+        report_files(rep)   # its report.json inside it: OutsideFolder otherwise
         return ViewerSite(root, m, rep, prefix)
 
     @property
@@ -231,20 +256,32 @@ class ViewerSite:
     @property
     def has_atlas(self) -> bool:
         """Whether the probe set has its face atlas on disk."""
-        return (self.probe_dir / self.atlas_name).is_file()
+        return self.set_file(self.atlas_name).is_file()
+
+    def set_file(self, name: str, key: str = "") -> Path:
+        """The file of the set that the manifest calls ``name`` (in its entry ``files.key``):
+        resolved, links included, and checked to lie inside :attr:`probe_dir`
+        (:func:`envcap.core.contained_path.resolve_inside`; ``OutsideFolder`` naming the entry
+        otherwise).  Read this path, never ``probe_dir / name``."""
+        return resolve_inside(self.probe_dir, name, f"{self.probe_dir / 'manifest.json'}: files{'.' + key if key else ''}")
 
     def manifest_files(self) -> dict[str, Path]:
-        """The files the manifest names that exist (``manifest.json`` included), by relative name."""
-        doc = json.loads((self.probe_dir / "manifest.json").read_text())
-        names = {"manifest.json"}
-        for v in doc.get("files", {}).values():
-            for name in (v if isinstance(v, list) else [v]):
-                if isinstance(name, str):
-                    names.add(name)
-        return {n: self.probe_dir / n for n in sorted(names) if (self.probe_dir / n).is_file()}
+        """The files the manifest names that exist (``manifest.json`` included), by relative name,
+        each resolved inside the set (:meth:`set_file`: a name or a link that leads outside it
+        raises ``OutsideFolder`` naming the entry, whether or not the file exists)."""
+        f = self.manifest.files
+        entries: list[tuple[str, Any]] = [(k, getattr(f, k)) for k in ("probes", "sky", "exr", "previews", "sky_preview",
+                                                                       "contact_sheet")]
+        entries += list(f.extra.items())
+        out = {"manifest.json": resolve_inside(self.probe_dir, "manifest.json", str(self.probe_dir))}
+        for key, value in entries:
+            for name in ([value] if isinstance(value, str) else value or ()):
+                out[name] = self.set_file(name, key)
+        return {n: out[n] for n in sorted(out) if out[n].is_file()}
 
     def set_routes(self) -> Routes:
-        """``/<prefix>NAME`` for each file the manifest names (the face atlas included, if on disk)."""
+        """``/<prefix>NAME`` for each file the manifest names (:meth:`manifest_files`: resolved
+        inside the set), and nothing else."""
         return {f"/{self.prefix}{n}": path for n, path in self.manifest_files().items()}
 
     def routes(self) -> Routes:
@@ -263,7 +300,7 @@ class ViewerSite:
         gltf = m.files.extra.get("scene_gltf")   # the bake's scene.glb, if written
         return {"manifest": self.prefix + "manifest.json", "atlas": self.prefix + self.atlas_name,
                 "sky": self.prefix + str(m.files.sky),
-                **({"scene": self.prefix + gltf} if isinstance(gltf, str) and (self.probe_dir / gltf).is_file() else {})}
+                **({"scene": self.prefix + gltf} if isinstance(gltf, str) and self.set_file(gltf).is_file() else {})}
 
     def streets(self) -> list[dict[str, Any]]:
         """Per street: name, axis, extent and nominal planes (frame coordinates), its plan
@@ -309,13 +346,12 @@ class ViewerSite:
         """The page's ``api/config.json`` (URLs relative to the page)."""
         m = self.manifest
         sun = m.sky.sun
-        doc = json.loads((self.probe_dir / "manifest.json").read_text())
         return {
             "files": self.files(),
             "resolution": m.resolution, "powers": [_finite(p) for p in m.lobes.powers],
             "sun": None if sun is None else list(map(float, sun.direction)),
             "sun_in_sky": bool(m.sky.sun_baked_in_map),
-            "scene": doc.get("scene", {}).get("name"),
+            "scene": None if m.scene is None else m.scene.name,
             "ladder": None if m.ladder is None else {   # a rung-ladder set: shown through layer r = 0 of each level
                 "mode": m.ladder.mode, "per_level": int(m.ladder.per_level),
                 "shown": "layer r = 0 of each level (the manifest's lobe table), not the rung blend"},
