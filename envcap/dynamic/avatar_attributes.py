@@ -157,8 +157,9 @@ def read_annotated(path: str | Path) -> tuple[SkinnedAvatar, ProxySpheres]:
     except (TypeError, KeyError, ValueError):
         raise GltfError(f"{path}: skins[{avatar.skin_index}].extras.{SPHERES_KEY} is missing or not centers and "
                         f"radii lists (write the file again with envcap avatar)") from None
-    if centers.shape != (j, 3) or radii.shape != (j,) or not (np.all(np.isfinite(centers)) and np.all(np.isfinite(radii))
-                                                              and np.all(radii >= 0) and np.any(radii > 0)):
+    fits = centers.shape == (j, 3) and radii.shape == (j,)
+    if not (fits and np.all(np.isfinite(centers)) and np.all(np.isfinite(radii)) and np.all(radii >= 0)
+            and np.any(radii > 0)):
         raise GltfError(f"{path}: skins[{avatar.skin_index}].extras.{SPHERES_KEY} does not fit the skin's {j} joints "
                         f"(centers {centers.shape}, radii {radii.shape}; finite, radii >= 0, one > 0)")
     owner = owner_joints(avatar)
