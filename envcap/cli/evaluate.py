@@ -7,6 +7,9 @@ import math
 from pathlib import Path
 
 from envcap.cli.output_options import add_force_argument, scene_input_files
+from envcap.core.input_path import require_file
+from envcap.dynamic.avatar_attributes import is_envcap_avatar
+from envcap.evaluate.dynamic_avatars import load_rigged
 from envcap.evaluate.bounds import check_evaluation, estimate_evaluation
 from envcap.evaluate.occluder_report import (
     OCCLUDER_KINDS,
@@ -74,6 +77,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--occluders", choices=OCCLUDER_KINDS, default="none",
                    help="also evaluate the dynamic terms against fresh captures with rings of spheres ('ring'), "
                         "walker avatars ('avatars') or both ('all') around crowd positions (default none)")
+    p.add_argument("--avatar", type=Path, metavar="FILE",
+                   help="with --occluders avatars|all: crowds of this avatar, a .glb written by 'envcap avatar' "
+                        "(its skin, animation and proxy spheres; default: the bundled walker)")
     p.add_argument("--quiet", action="store_true",
                    help="no progress on stderr (warnings and errors still); progress is a bar on a terminal, "
                         "else a line per stage and every 10 s")
@@ -99,9 +105,12 @@ def run(args: argparse.Namespace) -> int:
                                          len(powers), len(methods)))
     sweep = Sweep(per_street=args.positions, margin=DEFAULT_SWEEP.margin if args.margin is None else args.margin,
                   seed=args.seed)
+    check_avatar(args)
     inputs = [f for name in args.scene for f in scene_input_files(name)]
     if args.probes is not None:
         inputs.append(args.probes)
+    if args.avatar is not None:
+        inputs.append(args.avatar)
     with claim_output_dir(args.out, kind="evaluation-report", inputs=inputs, force=args.force) as out:
         occluders: list[dict] = []
         results = [evaluate_one(name, args, sweep, methods, occluders) for name in args.scene]
@@ -110,6 +119,21 @@ def run(args: argparse.Namespace) -> int:
             append_occluder_report(out.path, occluders, images=not args.no_images)
     print(f"report: {out.path / 'report.md'}")
     return 0
+
+
+def check_avatar(args: argparse.Namespace) -> None:
+    """Refuse, before any work, an ``--avatar`` without avatar crowds, missing, or not a file
+    ``envcap avatar`` wrote (one line naming it); a good one is read here, once (its skin and
+    stored proxy spheres; the crowds reuse them), so a broken file costs nothing either."""
+    if args.avatar is None:
+        return
+    if args.occluders not in ("avatars", "all"):
+        raise ValueError(f"--avatar goes with --occluders avatars or all (got --occluders {args.occluders})")
+    require_file(args.avatar, "--avatar", f"--avatar {args.avatar}: no such file")
+    if not is_envcap_avatar(args.avatar):
+        raise ValueError(f"--avatar {args.avatar} was not written by envcap avatar (it has no proxy spheres); "
+                         f"make one with: envcap avatar {args.avatar} --out NAME.glb")
+    load_rigged(str(args.avatar))
 
 
 def checked_methods(text: str) -> list[str]:
@@ -151,7 +175,7 @@ def evaluate_one(name: str, args: argparse.Namespace, sweep: Sweep, methods: lis
     res = evaluate_scene(scene, ps, sweep=sweep, methods=methods, lobe_powers=args.lobes or DEFAULT_LOBE_POWERS,
                          resolution=args.resolution, report=report)
     if occluders is not None and getattr(args, "occluders", "none") != "none":
-        occluders.append(evaluate_occluders(scene, ps, args.occluders,
+        occluders.append(evaluate_occluders(scene, ps, args.occluders, avatar=getattr(args, "avatar", None),
                                             resolution=args.resolution if args.resolution is not None else 64))
     t = res.timings
     print(f"evaluated {len(res.positions)} positions of '{scene.name}' in {t['total_s']:.1f} s "

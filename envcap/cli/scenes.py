@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from envcap.gpu.context import create_context
-from envcap.outputs.guard import check_file_replaceable, check_writable, resolve_output
+from envcap.outputs.guard import check_file_replaceable, check_file_target, check_writable, resolve_output
 from envcap.scene import list_scenes, load_scene
 from envcap.scene.load import check_scene
 from envcap.scene.scene_preview import save_previews
@@ -40,8 +40,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     ctx = None
     if args.preview:
-        check_writable(resolve_output(args.preview))  # before any scene is built
-        for name, _ in names:
+        check_writable(resolve_output(args.preview))  # before any scene is built: DIR a folder, or can be one,
+        for name, _ in names:                          # each PNG's folder takes files, no foreign PNG there
+            check_file_target(resolve_output(_preview_path(args.preview, name)))
             check_file_replaceable(_preview_path(args.preview, name), args.force)
         ctx = create_context()
     try:

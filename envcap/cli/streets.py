@@ -33,7 +33,7 @@ from envcap.scene.mesh_import import WINDING_MODES, import_meshes
 from envcap.scene.mesh_select import MESH_SUFFIXES, mesh_files
 from envcap.scene.model import SceneMesh
 from envcap.scene.parse import parse_scene, read_toml
-from envcap.scene.street_detect import DetectedStreet, StreetSearch, detect_streets, intersections
+from envcap.scene.street_detect import DetectedStreet, NoWalls, StreetSearch, detect_streets, intersections
 from envcap.scene.street_detect_figure import save_street_map
 from envcap.scene.streets_scene import check_copyable, mesh_scene_text, scene_scene_text, street_ground
 
@@ -177,10 +177,17 @@ def _build_source_scene(source: Source, say: Progress) -> tuple[SceneMesh, tuple
     return scene.mesh, scene.meta["ground_center"], raw
 
 
-def _detect(mesh: SceneMesh, search: StreetSearch, say: Progress) -> tuple[np.ndarray, list[DetectedStreet]]:
+def _detect(mesh: SceneMesh, search: StreetSearch, say: Progress, where: str,
+            up_axis: str | None = None) -> tuple[np.ndarray, list[DetectedStreet]]:
+    """The streets of ``mesh`` (read from ``where``); ``up_axis``: the ``--up-axis`` a mesh file was
+    read with (named in the error when no wall stands up), None for a scene."""
     tri = (mesh.positions.astype(np.float64) + mesh.origin)[mesh.indices.astype(np.int64)]
     say.begin("streets", f"searching {tri.shape[0]:,} triangles for facades that face each other")
-    streets = detect_streets(tri, search, progress=say.tick)
+    try:
+        streets = detect_streets(tri, search, progress=say.tick)
+    except NoWalls:
+        hint = "" if up_axis is None else f" when read with --up-axis {up_axis}; is that the file's up axis?"
+        raise NoWalls(f"{where}: no walls found: the mesh has no near-vertical triangles{hint}") from None
     say.end(f"{len(streets)} found")
     return tri, streets
 
@@ -195,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
             center, raw = (0.0, 0.0), {}
         else:
             mesh, center, raw = _build_source_scene(source, say)
-        tri, streets = _detect(mesh, search, say)
+        tri, streets = _detect(mesh, search, say, source.text, args.up_axis if source.files is not None else None)
         say.begin("ground", "sampling the mesh's ground under the streets' centre lines")
         ground = street_ground(mesh, streets, progress=say.tick)
         say.end(f"a surface under {ground.share:.0%} of them")

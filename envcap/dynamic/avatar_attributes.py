@@ -1,4 +1,6 @@
-"""Write an avatar's proxy spheres and per-vertex blockers into a new glTF 2.0 binary (``.glb``).
+"""An avatar's proxy spheres and per-vertex blockers in a glTF 2.0 binary (``.glb``): written into a
+new file (``envcap avatar``), read back by the commands that take such a file (``envcap evaluate
+--avatar``, :func:`read_annotated`).
 
 What is added (application-specific names start with ``_``, as glTF 2.0 requires):
 
@@ -7,7 +9,8 @@ What is added (application-specific names start with ``_``, as glTF 2.0 requires
   ``_ENVCAP_BLOCKER_WEIGHTS`` (VEC4 float: each blocker's score, the fraction of the
   cosine-weighted hemisphere it hides, reduced over the keyframes; 0 in unused slots);
 * ``skins[i].extras["envcap_proxy_spheres"]``: ``centers`` (J x 3, m, each in its joint's bind
-  frame, i.e. posed by the joint's global transform), ``radii`` (m), the rule;
+  frame, i.e. posed by the joint's global transform), ``radii`` (m), both at full float64
+  precision, the rule;
 * ``skins[i].extras["envcap_blockers"]``: ``k``, ``reduce``, ``exclude_weight``, the measure;
 * ``animations[a].extras["envcap_avatar_sphere"]``: per keyframe ``times`` (s), ``centers``
   (m, scene frame), ``radii`` and ``enclosing`` radii (m) of the one-sphere LOD, and
@@ -26,15 +29,18 @@ from pathlib import Path
 import numpy as np
 import pygltflib
 
+from envcap.core.input_path import require_file
 from envcap.dynamic.avatar_blockers import Blockers, check_options, select_blockers
 from envcap.dynamic.crowd_lod import NEAR_FACTOR, avatar_sphere
 from envcap.dynamic.gltf_buffers import GltfError, append_accessor
-from envcap.dynamic.gltf_skin import SkinnedAvatar, avatar_from_gltf
-from envcap.dynamic.proxy_spheres import ProxySpheres, fit_proxy_spheres, pose_spheres
+from envcap.dynamic.gltf_skin import SkinnedAvatar, avatar_from_gltf, read_gltf
+from envcap.dynamic.proxy_spheres import ProxySpheres, fit_proxy_spheres, owner_joints, pose_spheres
 from envcap.probeset.progress import BakeProgress
 
 BLOCKERS_ATTRIBUTE = "_ENVCAP_BLOCKERS"
 BLOCKER_WEIGHTS_ATTRIBUTE = "_ENVCAP_BLOCKER_WEIGHTS"
+SPHERES_KEY = "envcap_proxy_spheres"
+"""``skins[i].extras`` key of the proxy spheres (module docstring)."""
 MARK = ("envcap", "avatar")
 """``asset.extras[MARK[0]] == MARK[1]`` in a file envcap wrote."""
 SPHERE_RULE = ("vertices of largest weight to the joint, in its bind frame; centre = convex hull volume "
@@ -93,8 +99,8 @@ def annotate(gltf: pygltflib.GLTF2, k: int = 4, animation: int | None = 0, reduc
         start += size
     sk = gltf.skins[avatar.skin_index]
     sk.extras = dict(sk.extras or {})
-    sk.extras["envcap_proxy_spheres"] = {"centers": spheres.centers.round(6).tolist(),
-                                         "radii": spheres.radii.round(6).tolist(), "rule": SPHERE_RULE}
+    # full float64 (JSON keeps every bit): read back (read_annotated), they pose exactly as the fit
+    sk.extras[SPHERES_KEY] = {"centers": spheres.centers.tolist(), "radii": spheres.radii.tolist(), "rule": SPHERE_RULE}
     sk.extras["envcap_blockers"] = {"k": int(k), "reduce": reduce, "exclude_weight": float(exclude_weight),
                                     "animation": animation, "measure": MEASURE}
     if animation is not None:
@@ -121,16 +127,40 @@ def write_annotated(source: str | Path, target: str | Path, **options) -> tuple[
     check_options(options.get("k", 4), options.get("reduce", "mean"), options.get("exclude_weight", 0.0))
     report = options.get("report") or BakeProgress("off")
     report.start("read", 0)
-    try:
-        gltf = pygltflib.GLTF2().load(str(source))
-    except FileNotFoundError:
-        raise
-    except Exception as exc:  # pygltflib raises assorted errors on bad files
-        raise GltfError(f"{source}: not a readable glTF 2.0 file ({type(exc).__name__}: {exc})") from None
-    if gltf is None:
-        raise GltfError(f"{source}: not a readable glTF 2.0 file")
+    gltf = read_gltf(source)
     result = annotate(gltf, name=str(source), **options)
     report.start("write", 0)
     gltf.save_binary(str(target))
     report.finish()
     return result
+
+
+def read_annotated(path: str | Path) -> tuple[SkinnedAvatar, ProxySpheres]:
+    """The avatar of a file ``envcap avatar`` wrote and the proxy spheres stored in it
+    (``skins[i].extras.envcap_proxy_spheres``: centres ``(J, 3)`` in each joint's bind frame, m,
+    radii ``(J,)`` m), not fitted again; each vertex belongs to the joint of its largest weight
+    (:func:`~envcap.dynamic.proxy_spheres.owner_joints`).  ``FileNotFoundError`` when ``path`` is
+    missing; ``ValueError`` (one line naming the file) when it is not such a file: another glTF
+    (no :data:`MARK`: its spheres were never computed), or spheres that do not fit its skin."""
+    require_file(path, "avatar file", f"avatar file {path} does not exist")
+    if not is_envcap_avatar(path):
+        raise ValueError(f"{path} was not written by envcap avatar (it has no asset.extras.envcap = \"avatar\"); "
+                         f"make one with: envcap avatar {path} --out NAME.glb")
+    gltf = read_gltf(path)
+    avatar = avatar_from_gltf(gltf, str(path))
+    extras = gltf.skins[avatar.skin_index].extras or {}
+    stored = extras.get(SPHERES_KEY) if isinstance(extras, dict) else None
+    j = avatar.joint_count
+    try:
+        centers = np.asarray(stored["centers"], np.float64)
+        radii = np.asarray(stored["radii"], np.float64)
+    except (TypeError, KeyError, ValueError):
+        raise GltfError(f"{path}: skins[{avatar.skin_index}].extras.{SPHERES_KEY} is missing or not centers and "
+                        f"radii lists (write the file again with envcap avatar)") from None
+    fits = centers.shape == (j, 3) and radii.shape == (j,)
+    if not (fits and np.all(np.isfinite(centers)) and np.all(np.isfinite(radii)) and np.all(radii >= 0)
+            and np.any(radii > 0)):
+        raise GltfError(f"{path}: skins[{avatar.skin_index}].extras.{SPHERES_KEY} does not fit the skin's {j} joints "
+                        f"(centers {centers.shape}, radii {radii.shape}; finite, radii >= 0, one > 0)")
+    owner = owner_joints(avatar)
+    return avatar, ProxySpheres(centers, radii, np.bincount(owner, minlength=j).astype(np.int64), owner)

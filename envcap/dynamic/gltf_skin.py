@@ -231,9 +231,9 @@ def _animations(gltf: pygltflib.GLTF2) -> tuple[SkinAnimation, ...]:
     return tuple(out)
 
 
-def load_avatar(path: str | Path) -> SkinnedAvatar:
-    """Read the first skinned mesh node of a ``.glb`` / ``.gltf`` file (buffers embedded or beside it)."""
-    path = Path(path)
+def read_gltf(path: str | Path) -> pygltflib.GLTF2:
+    """The glTF document of a ``.glb`` / ``.gltf`` file; :class:`GltfError` naming the file when it
+    is not one (``FileNotFoundError`` when it is missing)."""
     try:
         gltf = pygltflib.GLTF2().load(str(path))
     except FileNotFoundError:
@@ -242,7 +242,12 @@ def load_avatar(path: str | Path) -> SkinnedAvatar:
         raise GltfError(f"{path}: not a readable glTF 2.0 file ({type(exc).__name__}: {exc})") from None
     if gltf is None:
         raise GltfError(f"{path}: not a readable glTF 2.0 file")
-    return avatar_from_gltf(gltf, str(path))
+    return gltf
+
+
+def load_avatar(path: str | Path) -> SkinnedAvatar:
+    """Read the first skinned mesh node of a ``.glb`` / ``.gltf`` file (buffers embedded or beside it)."""
+    return avatar_from_gltf(read_gltf(path), str(path))
 
 
 def avatar_from_gltf(gltf: pygltflib.GLTF2, name: str = "glTF") -> SkinnedAvatar:

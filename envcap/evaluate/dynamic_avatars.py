@@ -3,7 +3,8 @@ point, fresh captures with their meshes in the scene as truth, Eq. 3 shading fro
 without and with the dynamic terms of their proxy spheres (the paper's Sections V-VI).
 
 Per position ``x`` and :class:`Crowd` (rings of :class:`AvatarRing`): every avatar (the test
-avatar ``city_scenes/avatars/walker.glb`` unless another is given) is posed at a keyframe of its
+avatar ``city_scenes/avatars/walker.glb`` unless another is given: a file ``envcap avatar`` wrote,
+with the proxy spheres stored in it) is posed at a keyframe of its
 animation by its skin (:func:`envcap.dynamic.gltf_skin.skin`), turned about +Y and stood on the
 ground under its feet around ``x``; the posed meshes are added to the scene
 (:func:`envcap.scene.extra_meshes.with_meshes`) and a cube is captured at ``x`` (the truth).  The
@@ -32,6 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from envcap.capture.renderer import CubeCapture
 from envcap.core.checks import positive_int
 from envcap.core.resources import city_scenes_dir
+from envcap.dynamic.avatar_attributes import is_envcap_avatar, read_annotated
 from envcap.dynamic.crowd_lod import (
     NEAR_FACTOR,
     AvatarSphere,
@@ -75,7 +77,11 @@ def walker_path() -> Any:
 
 @lru_cache(maxsize=4)
 def load_rigged(path: str) -> tuple[SkinnedAvatar, ProxySpheres]:
-    """The avatar at ``path`` and its proxy spheres (one per joint), read and fitted once per path."""
+    """The avatar at ``path`` and its proxy spheres (one per joint), read once per path: those
+    stored in a file ``envcap avatar`` wrote (:func:`envcap.dynamic.avatar_attributes.read_annotated`),
+    else fitted (:func:`envcap.dynamic.proxy_spheres.fit_proxy_spheres`: the bundled walker)."""
+    if is_envcap_avatar(path):
+        return read_annotated(path)
     avatar = load_avatar(path)
     return avatar, fit_proxy_spheres(avatar)
 

@@ -5,7 +5,8 @@ of ``report.md`` with its figure and JSON.
 KIND ``ring``: the rings of spheres of :data:`envcap.evaluate.dynamic_occluders.DEFAULT_RINGS`
 (:func:`~envcap.evaluate.dynamic_occluders.evaluate_rings`); ``avatars``: the walker crowds of
 :data:`envcap.evaluate.dynamic_avatars.DEFAULT_CROWDS`
-(:func:`~envcap.evaluate.dynamic_avatars.evaluate_avatar_crowds`); ``all``: both.  Positions: on
+(:func:`~envcap.evaluate.dynamic_avatars.evaluate_avatar_crowds`), or crowds of the avatar a file
+``envcap avatar`` wrote (``--avatar FILE``: its skin, animation and stored proxy spheres); ``all``: both.  Positions: on
 the probe set's first street, at its middle probe and half way to the next one, on the probe line,
 :data:`RING_HEIGHT_M` (rings) or :data:`AVATAR_HEIGHT_M` (avatars) above the ground under them.
 Truth captures at the evaluation's face size, at most :data:`MAX_RESOLUTION`; sun: the analytic
@@ -28,7 +29,9 @@ import numpy as np
 from envcap.evaluate.dynamic_avatars import (
     DEFAULT_CROWDS,
     evaluate_avatar_crowds,
+    load_rigged,
     material_summary,
+    walker_path,
 )
 from envcap.evaluate.dynamic_occluders import DEFAULT_RINGS, evaluate_rings
 from envcap.evaluate.predict import Predictor
@@ -63,19 +66,33 @@ def occluder_positions(manifest: Any, height: float) -> tuple[str, list[list[flo
     return st.name, out
 
 
+def avatar_summary(avatar: str | os.PathLike[str] | None) -> dict[str, Any]:
+    """``{"file", "joints", "sphere_radii"}`` of the avatar the crowds are made of: ``avatar`` (a
+    file ``envcap avatar`` wrote; its stored proxy spheres) or, for ``None``, the bundled walker
+    (``file`` None; spheres fitted).  Radii in m, skin order; 0: a joint without a sphere."""
+    avatar_, spheres = load_rigged(str(avatar if avatar is not None else walker_path()))
+    return {"file": None if avatar is None else str(avatar), "joints": avatar_.joint_count,
+            "sphere_radii": [round(float(r), 6) for r in spheres.radii]}
+
+
 def evaluate_occluders(scene: Any, probe_set: Any, kind: str, *, resolution: int = MAX_RESOLUTION,
-                       ctx: Any = None, models: Sequence[str] = REPORT_MODELS) -> dict[str, Any]:
-    """``{"scene", "kind", "resolution", "ring": rows | None, "avatars": rows | None, "positions"}``
-    for ``kind`` in :data:`OCCLUDER_KINDS` (not ``"none"``)."""
+                       ctx: Any = None, models: Sequence[str] = REPORT_MODELS,
+                       avatar: str | os.PathLike[str] | None = None) -> dict[str, Any]:
+    """``{"scene", "kind", "resolution", "ring": rows | None, "avatars": rows | None, "positions",
+    "avatar"}`` for ``kind`` in :data:`OCCLUDER_KINDS` (not ``"none"``); ``avatar``: the crowds'
+    avatar, a file ``envcap avatar`` wrote (default: the bundled walker), described by
+    :func:`avatar_summary` under ``"avatar"`` (``None`` without avatar crowds)."""
     if kind not in OCCLUDER_KINDS or kind == "none":
         raise ValueError(f"--occluders must be one of {', '.join(OCCLUDER_KINDS[1:])} (or none), got {kind!r}")
+    if avatar is not None and kind not in ("avatars", "all"):
+        raise ValueError(f"--avatar goes with --occluders avatars or all, not {kind}")
     res = min(int(resolution), MAX_RESOLUTION)
     own = ctx is None
     if own:
         from envcap.gpu.context import create_context
         ctx = create_context()
     out: dict[str, Any] = {"scene": scene.name, "kind": kind, "resolution": res, "ring": None, "avatars": None,
-                           "positions": {}}
+                           "positions": {}, "avatar": None}
     try:
         predictor = Predictor(probe_set, sky=scene.sky.build(), ctx=ctx)
         if kind in ("ring", "all"):
@@ -86,8 +103,9 @@ def evaluate_occluders(scene: Any, probe_set: Any, kind: str, *, resolution: int
         if kind in ("avatars", "all"):
             street, pts = occluder_positions(probe_set.manifest, AVATAR_HEIGHT_M)
             out["positions"]["avatars"] = pts
+            out["avatar"] = avatar_summary(avatar)
             out["avatars"] = evaluate_avatar_crowds(scene, predictor, street, pts, crowds=DEFAULT_CROWDS, ctx=ctx,
-                                                    resolution=res, models=models)
+                                                    resolution=res, models=models, avatar_path=avatar)
     finally:
         if own:
             ctx.release()
@@ -104,13 +122,21 @@ def section_markdown(results: Sequence[dict[str, Any]], figures: Sequence[str] =
           "RMS over positions x rings (`docs/dynamic.md`, \"Street evaluation\").\n")
     for r in results:
         variants = [f"{s}{'' if m is None else '+' + m}" for s in ("static", "oracle") for m in [None, *r["models"]]]
-        for key, title in (("ring", "rings of spheres"), ("avatars", "walker crowds")):
+        for key, title in (("ring", "rings of spheres"), ("avatars", crowd_title(r.get("avatar")))):
             if r[key] is not None:
                 md += (f"\n### {r['scene']}: {title} ({len(r['positions'][key])} positions, {r['resolution']}² truth)\n\n"
                        + material_summary(r[key], variants))
     for f in figures:
         md += f"\n![dynamic occluders]({f})\n"
     return md
+
+
+def crowd_title(avatar: dict[str, Any] | None) -> str:
+    """The avatar crowds' title: "walker crowds" (the bundled walker), else "crowds of NAME" (the
+    ``--avatar`` file's name)."""
+    if avatar is None or avatar.get("file") is None:
+        return "walker crowds"
+    return f"crowds of {Path(avatar['file']).name}"
 
 
 def plot_occluders(result: dict[str, Any], path: Path) -> None:
@@ -130,7 +156,8 @@ def plot_occluders(result: dict[str, Any], path: Path) -> None:
                        color="#444" if j == 0 else colors[(j - 1) % len(colors)], marker="x" if j == 0 else "o", label=v)
         ax.axvline(10, color="k", ls=":", lw=1)
         ax.set_xlabel("visible sky hidden (%)")
-        ax.set_title(f"{result['scene']}: {'rings of spheres' if key == 'ring' else 'walker crowds'}", fontsize=9)
+        ax.set_title(f"{result['scene']}: {'rings of spheres' if key == 'ring' else crowd_title(result.get('avatar'))}",
+                     fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     axes[0][0].set_ylabel("Eq. 3 luminance error (%)")

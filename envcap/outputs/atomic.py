@@ -127,8 +127,10 @@ def atomic_output_file(path: str | os.PathLike[str], *, keep_existing: bool = Fa
     ``scenes --preview``): take its lock first (:mod:`envcap.outputs.lock`: a second run fails at
     once) and remove what killed runs left (:func:`~envcap.outputs.swap.recover_file`).  Files
     written inside an output directory need neither (the directory's claim covers them).
-    Missing folders above ``path`` are created, and removed again if the write fails."""
-    final = Path(path).resolve()
+    Missing folders above ``path`` are created, and removed again if the write fails.  A path
+    through a symbolic link whose target does not exist is refused
+    (:func:`~envcap.outputs.guard.resolve_output`)."""
+    final = resolve_output(path)
     created = make_parents(final.parent)
     try:
         with contextlib.ExitStack() as stack:

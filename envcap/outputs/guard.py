@@ -3,6 +3,8 @@
 The rules (``OutputRefused`` says which one a path breaks):
 
 * the output is not a file, and the closest existing folder above it is a writable directory;
+* the output is not reached through a symbolic link whose target does not exist (envcap never
+  writes through a link it did not make: it would create whatever the link names);
 * the output is never an input, an ancestor of an input, the working directory or an ancestor
   of it, whatever ``force`` says;
 * the output is never the file system root, an existing top-level directory (``/etc``,
@@ -17,6 +19,7 @@ The rules (``OutputRefused`` says which one a path breaks):
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -27,8 +30,40 @@ class OutputRefused(ValueError):
     """envcap will not write an output there; the message says why and what to do instead."""
 
 
+def dangling_link(path: str | os.PathLike[str]) -> Path | None:
+    """The first symbolic link on the way to ``path`` (``path`` itself or a folder above it) whose
+    target does not exist, else ``None``.  Writing there would create the link's target: a file or
+    folder somewhere the link, not the user's command, names."""
+    p = Path(os.path.abspath(os.fspath(path)))
+    for step in [*reversed(p.parents), p]:
+        if os.path.islink(step):
+            try:
+                os.stat(step)
+            except FileNotFoundError:
+                return step
+            except OSError:     # a loop of links: resolve_output names it
+                return None
+        elif not os.path.lexists(step):
+            return None     # nothing further down exists, links included
+    return None
+
+
+def check_no_dangling_link(path: str | os.PathLike[str]) -> None:
+    """Refuse (:class:`OutputRefused`) an output ``path`` through a symbolic link whose target does
+    not exist (:func:`dangling_link`): envcap never writes through a link it did not make."""
+    link = dangling_link(path)
+    if link is not None:
+        named = "" if link == Path(os.path.abspath(os.fspath(path))) else f" (on the way to {path})"
+        raise OutputRefused(f"output {link} is a symbolic link to {os.readlink(link)}, which does not exist"
+                            f"{named}; envcap does not write through a link it did not make: remove the link, "
+                            f"or choose another output")
+
+
 def resolve_output(path: str | os.PathLike[str]) -> Path:
-    """The absolute path, symbolic links resolved, that an output named ``path`` will have."""
+    """The absolute path, symbolic links resolved, that an output named ``path`` will have.
+    Refused (:class:`OutputRefused`): a loop of links, a link whose target does not exist on the
+    way (:func:`check_no_dangling_link`), the file system root."""
+    check_no_dangling_link(path)
     try:
         final = Path(os.path.abspath(os.fspath(path))).resolve()
     except (RuntimeError, OSError) as exc:   # a loop of symbolic links (Python 3.11: RuntimeError)
@@ -98,9 +133,21 @@ def check_output_target(final: Path, inputs: Iterable[str | os.PathLike[str]] = 
     check_writable(final)
 
 
+def creation_refused(folder: Path) -> str | None:
+    """Why nothing can be created in the existing directory ``folder`` (the system's reason, in
+    words), or ``None`` when a folder can be: tried for real (a folder ``.envcap-write-test-*``
+    made and removed at once), since permissions do not tell (``root`` passes every permission
+    check, yet ``/proc`` or a read-only mount takes no new entry)."""
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".envcap-write-test-", dir=folder))
+    except OSError as exc:
+        return (exc.strerror or str(exc)).lower()
+    return None
+
+
 def check_file_target(final: Path) -> None:
     """Refuse a single-file output ``final`` whose folder cannot be created or written: below a
-    file, or a folder without write permission."""
+    file, or a folder without write permission or that takes no new entry (:func:`creation_refused`)."""
     above = final.parent
     while not above.exists():
         above = above.parent
@@ -108,11 +155,15 @@ def check_file_target(final: Path) -> None:
         raise OutputRefused(f"cannot write output {final}: {above} is a file, not a folder")
     if not os.access(above, os.W_OK | os.X_OK):
         raise OutputRefused(f"cannot write output {final}: the folder {above} is not writable")
+    why = creation_refused(above)
+    if why is not None:
+        raise OutputRefused(f"cannot write output {final}: nothing can be created in {above} ({why})")
 
 
 def check_writable(folder: Path) -> None:
     """Refuse a ``folder`` that cannot be created or written: a file, or below a file or a
-    folder without write permission (on a read-only file system, too)."""
+    folder without write permission, or one that takes no new entry (a read-only file system,
+    ``/proc``: :func:`creation_refused`)."""
     if folder.exists() and not folder.is_dir():
         raise OutputRefused(f"output path {folder} exists and is not a directory")
     above = folder.parent
@@ -122,6 +173,9 @@ def check_writable(folder: Path) -> None:
         raise OutputRefused(f"cannot create output directory {folder}: {above} is not a directory")
     if not os.access(above, os.W_OK | os.X_OK):
         raise OutputRefused(f"cannot create output directory {folder}: {above} is not writable")
+    why = creation_refused(above)
+    if why is not None:
+        raise OutputRefused(f"cannot create output directory {folder}: nothing can be created in {above} ({why})")
     if folder.exists() and not os.access(folder, os.W_OK | os.X_OK):
         raise OutputRefused(f"cannot write output directory {folder}: it is not writable")
 

@@ -38,6 +38,11 @@ Tick = Callable[[str], None]
 """A progress callback: one short text of how far a search got."""
 
 
+class NoWalls(ValueError):
+    """:func:`detect_streets` found no near-vertical triangle: nothing to find streets between
+    (often a mesh read with the wrong up axis)."""
+
+
 @dataclass(frozen=True)
 class StreetSearch:
     """Parameters of :func:`detect_streets` (meters, degrees); see the module docstring."""
@@ -338,12 +343,12 @@ def detect_streets(triangles: NDArray[np.float64], search: StreetSearch | None =
                    progress: Tick | None = None) -> list[DetectedStreet]:
     """Straight streets of a city mesh, ``triangles`` (T, 3, 3) world meters (see the module
     docstring), named ``street_00``... by direction then position.  ``progress(text)`` says how far
-    the search got (often: rate-limit it).  Raises ``ValueError`` if the mesh has no wall
+    the search got (often: rate-limit it).  Raises :class:`NoWalls` if the mesh has no wall
     at all."""
     search = search or StreetSearch()
     walls, angles, areas = wall_triangles(triangles, search.wall_tilt_deg)
     if not len(walls):
-        raise ValueError("no walls found: the mesh has no near-vertical triangles (is up_axis right?)")
+        raise NoWalls("no walls found: the mesh has no near-vertical triangles (is its up axis right?)")
     streets: list[DetectedStreet] = []
     peaks = street_directions(angles, areas, search.min_direction_share)
     for k, peak in enumerate(peaks):

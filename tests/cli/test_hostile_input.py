@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from envcap.cli import build_parser, error_text, main
+from envcap.outputs import OutputRefused, atomic_output_file
 from envcap.outputs.marker import MARKER_NAME, write_marker
 from envcap.probeset.progress import BakeProgress
 
@@ -77,6 +78,45 @@ def test_system_errors_become_sentences_naming_the_path(tmp_path, capsys):
     assert error_text(OSError(28, "No space left on device")) == "no space left on device (the disk is full)"
     assert error_text(ValueError("two\nlines")) == "two lines"
     assert sorted(p.name for p in tmp_path.iterdir()) == [".out.lock", "file", "loop"]
+
+
+def test_an_output_through_a_link_to_nothing_is_refused_naming_the_link(tmp_path, capsys):
+    """Before: ``--out LINK`` with LINK -> a missing path wrote the output at the link's target (a
+    folder or file the command never named); now one line names the link, and nothing is created."""
+    links = {}
+    for name, target in (("set", "gone_set"), ("deep", "gone_dir"), ("a.glb", "gone.glb"), ("previews", "gone_png")):
+        links[name] = tmp_path / name
+        links[name].symlink_to(tmp_path / target)
+    for argv, link in ((["capture", "planes", "--out", links["set"], "--resolution", "4"], "set"),
+                       (["capture", "planes", "--out", links["deep"] / "sub", "--resolution", "4"], "deep"),
+                       (["avatar", WALKER, "--out", links["a.glb"]], "a.glb"),
+                       (["scenes", "planes", "--preview", links["previews"]], "previews")):
+        err = _one_line(capsys, argv)
+        assert err.startswith(f"envcap: error: output {links[link]} is a symbolic link to {os.readlink(links[link])}, "
+                              "which does not exist"), err
+        assert "does not write through a link it did not make" in err, err
+    with pytest.raises(OutputRefused, match="is a symbolic link to"), atomic_output_file(links["a.glb"]) as tmp:
+        tmp.write_bytes(b"never")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(links)          # no target, no temporary
+    assert all(os.readlink(links[n]) == str(tmp_path / t) for n, t in
+               (("set", "gone_set"), ("deep", "gone_dir"), ("a.glb", "gone.glb"), ("previews", "gone_png")))
+
+
+@pytest.mark.parametrize("preview", ["NOTADIR/p.png", "/proc/p.png", "/proc"])
+def test_scenes_preview_where_nothing_can_be_written_fails_before_the_build(tmp_path, capsys, monkeypatch, preview):
+    """Before: ``envcap scenes NAME --preview /proc/p.png`` built (and printed) the scene and failed
+    at the write; ``root`` passes every permission check, so the folder is tried for real first."""
+    if preview.startswith("/proc") and not Path("/proc/self").is_dir():
+        pytest.skip("no /proc file system here")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "NOTADIR").write_text("a file")
+    assert main(["scenes", "canyon", "--preview", preview]) == 2
+    got = capsys.readouterr()
+    assert got.out == "", got.out                                   # nothing built, nothing printed
+    assert got.err.startswith("envcap: error: cannot ") and got.err.count("\n") == 1, got.err
+    assert ("NOTADIR is not a directory" if preview.startswith("NOTADIR")
+            else "nothing can be created in /proc") in got.err, got.err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["NOTADIR"]
 
 
 def test_messages_name_the_option_and_print_plain_numbers(tmp_path, capsys):

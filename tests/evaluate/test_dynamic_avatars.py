@@ -6,17 +6,23 @@
 * the crowd LOD rule: near avatars give their bone spheres, far ones one sphere;
 * a small avatar ring around a point in the canyon: against a fresh 16^2 capture with the meshes,
   the dynamic terms of the proxy spheres move the Eq. 3 error toward the truth; the rows as a
-  section of the evaluator's report.md (``envcap evaluate --occluders``).
+  section of the evaluator's report.md (``envcap evaluate --occluders``);
+* a user's avatar file (``envcap evaluate --avatar``): the walker through ``envcap avatar`` gives
+  the default's rows exactly, a child-sized one hides less; the spheres are read from the file
+  (edited radii come back edited); bad files are refused before any work.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pygltflib
 import pytest
 
 from envcap.capture.renderer import CubeCapture
 from envcap.cli import main
 from envcap.core import cube
+from envcap.dynamic.avatar_attributes import read_annotated, write_annotated
+from envcap.dynamic.avatar_synthetic import walker_gltf
 from envcap.evaluate.dynamic_avatars import (
     AvatarRing,
     Crowd,
@@ -146,3 +152,74 @@ def test_avatar_ring_moves_the_error_toward_the_truth(canyon, canyon_probe_set, 
     assert (tmp_path / files[1]).stat().st_size > 1000
     with pytest.raises(SystemExit):
         main(["evaluate", "canyon", "--bake", "40", "--out", str(tmp_path / "r"), "--occluders", "spheres"])
+
+
+# ------------------------------------------------------------------ a user's avatar file (--avatar)
+
+
+def _scaled_walker(path, scale: float) -> None:
+    """The walker under a root node scaled by ``scale`` (a child's size for ``scale`` < 1, feet
+    still at y = 0): a user's own skinned glTF, not the bundled file."""
+    g = walker_gltf()
+    g.nodes.append(pygltflib.Node(name="root", scale=[scale] * 3, children=[0]))
+    g.scenes[0].nodes = [len(g.nodes) - 1, g.scenes[0].nodes[1]]
+    g.save_binary(str(path))
+
+
+def test_an_envcap_avatar_file_is_the_crowds_avatar(canyon, canyon_probe_set, gl_ctx, tmp_path):
+    """``evaluate_avatar_crowds(avatar_path=FILE)`` with a file ``envcap avatar`` wrote: the bundled
+    walker through ``envcap avatar`` gives the default's rows exactly (its stored spheres are the
+    fit's, every bit); a child-sized avatar (0.8 x) hides less sky and covers less with its spheres."""
+    predictor = Predictor(canyon_probe_set, sky=canyon.sky.build(), ctx=gl_ctx)
+    x = [canyon_probe_set.manifest.streets[0].probes[3].position[0], 1.0, 0.0]
+
+    def rows(path=None):
+        return evaluate_avatar_crowds(canyon, predictor, "main", [x], crowds=[Crowd((AvatarRing(6, 0.6),))], ctx=gl_ctx,
+                                      resolution=16, materials=MATERIALS[:1], models=("envcap",), avatar_path=path)
+
+    assert main(["avatar", str(walker_path()), "--out", str(tmp_path / "walker_envcap.glb"), "--quiet"]) == 0
+    _scaled_walker(tmp_path / "child.glb", 0.8)
+    assert main(["avatar", str(tmp_path / "child.glb"), "--out", str(tmp_path / "child_envcap.glb"), "--quiet"]) == 0
+    default, walker, child = rows(), rows(tmp_path / "walker_envcap.glb"), rows(tmp_path / "child_envcap.glb")
+    assert walker == default
+    assert default[0]["sky_hidden"] > 0.05 and child[0]["sky_hidden"] < 0.5 * default[0]["sky_hidden"]
+    assert child[0]["coverage"] < 0.7 * default[0]["coverage"] and child[0]["spheres"] == default[0]["spheres"]
+
+
+def test_read_annotated_reads_the_stored_spheres_and_refuses_other_files(tmp_path):
+    out = tmp_path / "w.glb"
+    _, fitted, _ = write_annotated(walker_path(), out)
+    avatar, spheres = read_annotated(out)
+    np.testing.assert_array_equal(spheres.radii, fitted.radii)       # float64 round trip, every bit
+    np.testing.assert_array_equal(spheres.centers, fitted.centers)
+    np.testing.assert_array_equal(spheres.owner, fitted.owner)
+    # the spheres come from the file, not a new fit: edited radii are read back as written
+    g = pygltflib.GLTF2().load(str(out))
+    g.skins[0].extras["envcap_proxy_spheres"]["radii"] = [2 * r for r in fitted.radii.tolist()]
+    g.save_binary(str(tmp_path / "edited.glb"))
+    np.testing.assert_allclose(read_annotated(tmp_path / "edited.glb")[1].radii, 2 * fitted.radii, rtol=0)
+    g.skins[0].extras["envcap_proxy_spheres"]["radii"] = [0.1] * 3
+    g.save_binary(str(tmp_path / "short.glb"))
+    with pytest.raises(ValueError, match=r"short.glb: skins\[0\].extras.envcap_proxy_spheres does not fit the skin's 11 joints"):
+        read_annotated(tmp_path / "short.glb")
+    with pytest.raises(ValueError, match="was not written by envcap avatar"):
+        read_annotated(walker_path())
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        read_annotated(tmp_path / "none.glb")
+    assert avatar.joint_count == 11
+
+
+@pytest.mark.parametrize("avatar, occluders, words", [
+    ("none.glb", "avatars", "--avatar none.glb: no such file"),
+    ("WALKER", "all", "was not written by envcap avatar (it has no proxy spheres); make one with: envcap avatar"),
+    ("w.glb", "ring", "--avatar goes with --occluders avatars or all"),
+    (".", "avatars", "--avatar . is a directory"),
+])
+def test_evaluate_refuses_a_bad_avatar_before_any_work(tmp_path, capsys, monkeypatch, avatar, occluders, words):
+    monkeypatch.chdir(tmp_path)
+    write_annotated(walker_path(), tmp_path / "w.glb")
+    avatar = str(walker_path()) if avatar == "WALKER" else avatar
+    code = main(["evaluate", "canyon", "--bake", "40", "--out", "report", "--occluders", occluders, "--avatar", avatar])
+    err = capsys.readouterr().err
+    assert code == 2 and words in err and err.count("\n") == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["w.glb"]      # nothing written

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import shlex
+import socket
 import subprocess
 import sys
 from dataclasses import dataclass, field
@@ -52,6 +53,27 @@ class Terminal:
         self.transcript.append(f"$ {line} &")
         return subprocess.Popen(self.argv(line), cwd=cwd or self.cwd, env=self.env, stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, text=True, start_new_session=True)
+
+    @staticmethod
+    def first_line(proc: subprocess.Popen[str], prefix: str, limit: int = 40) -> str:
+        """The first line of a background process's output (:meth:`start`) that starts with
+        ``prefix``; fails the test with what it said when it exits or says ``limit`` lines first."""
+        seen = []
+        for _ in range(limit):
+            line = proc.stdout.readline() if proc.stdout is not None else ""
+            if not line:
+                break
+            seen.append(line)
+            if line.startswith(prefix):
+                return line
+        pytest.fail(f"no '{prefix}' line; the process said:\n{''.join(seen)}", pytrace=False)
+
+    @staticmethod
+    def free_port() -> int:
+        """A TCP port on 127.0.0.1 that nothing listens on now (for ``--port``)."""
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            return s.getsockname()[1]
 
 
 @pytest.fixture

@@ -4,7 +4,6 @@ in a browser, then ``envcap evaluate`` on the demo's probe set.  Each command's 
 next unchanged; small options keep the journey to ~15 s on 2 cores."""
 
 import re
-import socket
 
 import numpy as np
 import pytest
@@ -13,34 +12,15 @@ pytestmark = pytest.mark.slow   # a demo, a server, a page and an evaluation: ~1
 PROBE_DOT = [255, 204, 51]      # the map's probe marker, #fc3
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def first_line(proc, prefix, limit=40):
-    """The first line of a background process's output starting with ``prefix`` (fails when it exits)."""
-    seen = []
-    for _ in range(limit):
-        line = proc.stdout.readline()
-        if not line:
-            break
-        seen.append(line)
-        if line.startswith(prefix):
-            return line
-    pytest.fail(f"no '{prefix}' line; the process said:\n{''.join(seen)}", pytrace=False)
-
-
 def test_demo_then_view_then_evaluate(terminal, chromium):
     out = terminal.run("envcap demo --out envcap-demo --resolution 8 --spacing 100").stdout
     assert "envcap view envcap-demo" in out   # the demo says what to type next
     assert (terminal.cwd / "envcap-demo" / "probes" / "probes_atlas.ktx2").is_file()
 
-    port = free_port()
+    port = terminal.free_port()
     viewer = terminal.start(f"envcap view envcap-demo --port {port}")
     try:
-        line = first_line(viewer, "envcap viewer: ")
+        line = terminal.first_line(viewer, "envcap viewer: ")
         url = line.split()[2]
         assert url == f"http://127.0.0.1:{port}/", line
         assert "report" in line and "evaluation" in line, line   # the demo's report found beside the probes

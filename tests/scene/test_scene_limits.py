@@ -9,7 +9,9 @@ numbers, pixel coverage of the ground computed by ray/plane intersection.
 from __future__ import annotations
 
 import math
+import re
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +19,7 @@ import pytest
 from envcap.core import cube
 from envcap.capture.renderer import CubeCapture
 from envcap.scene import load_scene, scene_from_dict
+from envcap.scene import limits
 from envcap.scene.limits import BUILDING_LIMIT, COORDINATE_LIMIT_M, GROUND_EXTENT_LIMIT_M, QUAD_LIMIT
 
 SKY = {"type": "uniform", "radiance": 1.0}
@@ -243,3 +246,74 @@ def test_transformed_mesh_vertices_past_the_coordinate_limit_fail_at_load(tmp_pa
     path.write_text(path.read_text().replace("scale = 1e6", "scale = 4.9e5"))
     m = load_scene(path).mesh
     assert np.all(np.isfinite(m.positions)) and float(m.world_bounds()[1][0]) == pytest.approx(9.8e6 + 5.0)
+
+
+# ------------------------------------------------------------------------ 5. the documented minimums
+
+SCENES_MD = Path(__file__).resolve().parents[2] / "docs" / "scenes.md"
+
+
+def documented_minimums() -> list[tuple[str, str, float, str]]:
+    """``(table, key, minimum, constant)`` for every key of docs/scenes.md's "Ranges and limits"
+    table whose range reads ``MIN (`CONSTANT`) to ...``; a key without a word before it belongs to
+    the table named before it (``building `height`, `depth```)."""
+    text = SCENES_MD.read_text()
+    rows = text[text.index("| keys | range | why |"):].splitlines()[2:]
+    out = []
+    for row in rows:
+        if not row.startswith("|"):
+            break
+        keys, rng = (c.strip() for c in row.strip("|").split("|")[:2])
+        m = re.match(r"([0-9.]+) \(`(\w+)`\) to ", rng)
+        if not m:
+            continue
+        table = None
+        for word, key in re.findall(r"(?:(street|building|random|window|wall)\s+)?`([^`]+)`", re.sub(r"\(.*?\)", "", keys)):
+            if key.startswith("[ground] "):
+                word, key = "ground", key.removeprefix("[ground] ")
+            table = word or table
+            out.append((table, key, float(m.group(1)), m.group(2)))
+    return out
+
+
+def _with(table: str, key: str, v: float) -> tuple[dict, str]:
+    """A scene document with ``key`` of ``table`` set to ``v``, and the key's path in messages."""
+    side, path = {}, f"streets[0].side_min.{table}.{key}"
+    if table == "street" and key == "length":
+        doc = {"effects": [], "sky": SKY, "ground": {"enabled": False},
+               "streets": [{"name": "s", "axis": "x", "along_center": 0.0, "length": v, "width": 20.0}]}
+        return doc, "streets[0].length"
+    if table == "street":
+        return _doc(**{key: v}), f"streets[0].{key}"
+    if table == "ground":
+        return _doc(ground={"extent": 100.0, key: v}), f"ground.{key}"
+    if table == "building":
+        side, path = {"buildings": [{"width": 10.0, "height": 10.0, key: v}]}, f"streets[0].side_min.buildings[0].{key}"
+    elif table == "random":
+        side = {"random": {"width": 10.0, "height": 10.0, key: v}}
+    elif table == "window":
+        side, path = {"facade": {"windows": {key: v}}}, f"streets[0].side_min.facade.windows.{key}"
+    elif table == "wall":
+        side = {"wall": {"height": 5.0, key: v}}
+    return _doc(side_min=side), path
+
+
+def test_the_documented_minimums_are_the_enforced_ones():
+    """docs/scenes.md's range table against the parser: each documented minimum is its constant's
+    value, a value just below it is refused with that minimum in the message (naming the key), and
+    the minimum itself passes the key's own check."""
+    found = documented_minimums()
+    keys = {(t, k) for t, k, _, _ in found}
+    assert {("street", "width"), ("street", "length"), ("building", "height"), ("window", "spacing"),
+            ("wall", "tile"), ("random", "gap_width"), ("ground", "extent"), ("building", "width")} <= keys, keys
+    for table, key, low, constant in found:
+        assert getattr(limits, constant) == low, (table, key, constant)
+        doc, path = _with(table, key, low * (1 - 1e-3))
+        with pytest.raises(ValueError) as ei:
+            scene_from_dict(doc)
+        assert str(ei.value) == f"{path}: must be >= {low:g}, got {low * (1 - 1e-3):g}", (table, key, str(ei.value))
+        doc, path = _with(table, key, low)
+        try:
+            scene_from_dict(doc)
+        except ValueError as e:     # another rule may refuse the scene (window spacing vs width), not this key's range
+            assert not str(e).startswith(f"{path}:"), (table, key, str(e))

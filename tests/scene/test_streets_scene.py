@@ -145,6 +145,20 @@ def test_bad_options_are_one_line_naming_the_option_before_anything(tmp_path: Pa
     assert "mesh file" in capsys.readouterr().err and not out.exists()
 
 
+def test_a_mesh_without_walls_names_the_up_axis_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A mesh read with the wrong up axis has no wall standing up: the error names the option the
+    user typed (``--up-axis``), not the library's keyword (``up_axis``), and leaves no output."""
+    flat = tmp_path / "flat.ply"
+    trimesh.Trimesh([[0, 0, 0], [10, 0, 0], [0, 0, 10]], [[0, 1, 2]]).export(flat)   # a ground triangle, y up
+    out = tmp_path / "out"
+    assert main(["streets", str(flat), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"envcap: error: {flat}: no walls found: the mesh has no near-vertical triangles when read with "
+                   f"--up-axis y; is that the file's up axis?\n"), err
+    assert not out.exists()
+    assert main(["streets", str(flat), "--out", str(out), "--quiet", "--up-axis", "z"]) == 0   # z up: it stands
+
+
 def test_out_is_claimed_before_the_mesh_is_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     broken = tmp_path / "broken.ply"
     broken.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 999999\nproperty float x\nend_header\n\x00")
