@@ -2,8 +2,8 @@
 
 * ``guide_view_demo.png``: ``envcap demo --out envcap-demo``, then ``envcap view envcap-demo``
   in headless Chromium (the street view, the controls and the map with the report's positions);
-* ``guide_streets_map.png``: the map ``envcap streets`` writes for the generated city's
-  ``city.xml`` (its margins cropped);
+* ``guide_streets_map.png``: the map ``envcap streets`` writes for a copy of the generated
+  city's files (``city-files/city.xml``; its margins cropped);
 * ``guide_eval_error_vs_lobe.png``: ``envcap capture streets/scene.toml ...`` then ``envcap
   evaluate ... --positions 4``: the report's error-against-lobe-power plot;
 * ``guide_view_streets.png``: ``envcap view probes --report eval`` on that probe set;
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import shlex
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -34,7 +35,7 @@ from envcap.viewer.browser import Chromium  # noqa: E402
 
 ENV = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]),
            PYOPENGL_PLATFORM="egl", PYTHONUNBUFFERED="1")
-CITY_XML = city_scenes_dir() / "generated_city" / "data" / "city.xml"
+CITY_FILES = city_scenes_dir() / "generated_city" / "data"
 VIEW_BOX = (0, 0, 970, 530)
 """The part of a 1100 x 700 viewer page kept: the street view, the controls and the map."""
 
@@ -98,7 +99,8 @@ def main() -> None:
         run("envcap demo --out envcap-demo", work)
         view_screenshot("envcap view envcap-demo --port 0", work, "guide_view_demo.png")
 
-        run(f"envcap streets {shlex.quote(str(CITY_XML))} --up-axis z --offset -512000 0 5403000 --out streets", work)
+        shutil.copytree(CITY_FILES, work / "city-files")   # the user's own copy, as the guide makes it
+        run("envcap streets city-files/city.xml --up-axis z --offset -512000 0 5403000 --out streets", work)
         save(cropped_to_content(work / "streets" / "streets_map.png"), "guide_streets_map.png")
         run("envcap capture streets/scene.toml --out probes --resolution 64 --spacing 10 --webgl2 --scene-gltf",
             work)
