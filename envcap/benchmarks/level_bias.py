@@ -1,4 +1,4 @@
-"""level_bias: a held-out calibration of the level a depth-aware lookup reads (issue 12).
+"""level_bias: a held-out calibration of the level a depth-aware lookup reads.
 
 The narrow streets' budget (docs/evaluation.md, "A depth-aware lookup within 3x") measured that
 reading one level sharper (``w' x 1.2``) lowers the error of the single-lookup methods, but on the
