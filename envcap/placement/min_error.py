@@ -1,0 +1,71 @@
+"""``min_error``: the placement with the least evaluated error on the street's own training points.
+
+Candidates every ``step_m`` m along the street (at least two per asked probe), plus the uniform
+placement of every asked count (so that uniform is always one of the choices), are baked at
+``resolution``^2 (:func:`envcap.placement.candidates.bake_candidates`).  Training points are drawn
+like the evaluator's default sweep over the whole street (jittered strata along it, lateral within
+the facades less 1 m, 0.3-3 m above the ground) but with their own ``seed`` (101; the evaluator's
+is 5, so a bench never scores a placement on the points it was chosen on), ``points_per_m`` per
+meter of street (at least ``min_points``).  One evaluator pass measures ``E[k, j]``, the error of
+``method`` at point ``j`` reading only candidate ``k`` (mean over ``powers``; candidates farther
+than ``reach`` mean spacings from a point are not evaluated), and the exact dynamic programme of
+:func:`envcap.placement.partition.best_subset` picks the ``count`` candidates whose nearest-probe
+service of the training points has the least mean error (docs/placement.md).  Its training error
+is never above uniform's (uniform is a candidate subset).
+
+Needs: a GL context (captures).  Parameters: ``method`` (``"depth_refine"``, any registered
+parallax method), ``powers`` (``(64.0, 256.0)``), ``step_m`` (1.5), ``resolution`` (64, at most
+the bake's), ``points_per_m`` (0.5), ``min_points`` (16), ``seed`` (101), ``reach`` (3.0 mean
+spacings of the smallest count).  Notes per street: ``training_error``, ``uniform_training_error``,
+``candidates``, ``training_points``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from envcap.evaluate.sweep import Sweep, sample_positions
+from envcap.placement.candidates import (bake_candidates, candidate_grid, check_candidates, error_matrix, notes_number,
+                                         pass_seconds, point_along)
+from envcap.placement.partition import best_subset, served_error
+from envcap.placement.registry import PlacementContext, PlacementStrategy, StreetPlacement
+from envcap.probeset.placement import uniform_along
+from envcap.scene.model import Street
+
+MAX_POINTS = 512
+"""Most training points of one street."""
+
+
+def place(context: PlacementContext, street: Street, counts: Sequence[int], method: str = "depth_refine",
+          powers: Sequence[float] = (64.0, 256.0), step_m: float = 1.5, resolution: int = 64,
+          points_per_m: float = 0.5, min_points: int = 16, seed: int = 101, reach: float = 3.0) -> list[StreetPlacement]:
+    """The least-error placement of each of ``counts`` probes on ``street`` (module docstring)."""
+    length = street.length
+    step = min(float(step_m), length / (2 * max(counts)))
+    uniforms = {n: np.round(uniform_along(street, n), 9) for n in counts}
+    s = candidate_grid(street, step, np.concatenate(list(uniforms.values())))
+    n_points = min(MAX_POINTS, max(int(min_points), math.ceil(points_per_m * length)))
+    check_candidates(street, s.size, "min_error", pass_seconds(s.size, n_points, s.size * n_points, len(powers)))
+    res = min(int(resolution), int(context.resolution))
+    cand = bake_candidates(context, street, s, res, "min_error")
+    points = sample_positions(cand.manifest, Sweep(per_street=n_points, seed=seed))
+    errors = error_matrix(context, cand, points, method, powers, res, reach=reach * length / min(counts))
+    xs = point_along(street, points)
+    out = []
+    for n in counts:
+        chosen, err = best_subset(s, xs, errors, n)
+        uniform = np.searchsorted(s, uniforms[n])
+        notes = {"training_error": notes_number(err), "uniform_training_error": notes_number(served_error(uniform, s, xs, errors)),
+                 "candidates": int(s.size), "training_points": len(points)}
+        out.append(StreetPlacement(s[chosen], notes))
+    return out
+
+
+STRATEGY = PlacementStrategy(
+    "min_error", place, "least evaluated error on training points (candidates baked, one evaluator pass, exact DP)",
+    parameters={"method": "depth_refine", "powers": (64.0, 256.0), "step_m": 1.5, "resolution": 64, "points_per_m": 0.5,
+                "min_points": 16, "seed": 101, "reach": 3.0},
+    needs_gl=True)
