@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from collections.abc import Sequence
 from typing import Any
 
@@ -40,33 +41,48 @@ from envcap.runtime.street import StreetProbes
 from envcap.scene.model import Street
 
 MAX_CANDIDATES = 512
-"""Most candidate probes of one street (each is a pre-capture and a row of evaluator passes)."""
+"""Most candidate probes of one street (each is a pre-capture and a row of evaluator passes).  A
+long street gets candidates farther apart than a strategy's ``step_m``."""
 
 PREDICTION_S = 0.006
 """Seconds of one prediction (one candidate, one point, one lobe power, ``depth_refine``, 64^2
 truth) on this machine's llvmpipe-era CPU (2 cores): the unit of :func:`pass_seconds`."""
 
+NOTE_SECONDS = 60.0
+"""A placement estimated to take longer than this (s) says so first."""
+
 CAPTURE_S = 0.25
 """Seconds per candidate or evaluation point of capture, filter and truth filtering at 64^2."""
 
 
-def candidate_grid(street: Street, step: float, extra: ArrayLike = ()) -> NDArray[np.float64]:
-    """Candidate coordinates (m, ascending, distinct): the centres of ``round(length / step)``
-    equal cells of the street, and the coordinates ``extra`` (e.g. the uniform placements the
-    strategy must be able to choose)."""
-    k = max(1, int(round(street.length / step)))
-    grid = street.start + (np.arange(k) + 0.5) * street.length / k
+def grid_cells(street: Street, step: float, counts: Sequence[int], extra: int, strategy: str) -> int:
+    """How many equal cells the candidate grid of ``street`` has: one per ``step`` m, at least two
+    per probe of the largest of ``counts``, at most :data:`MAX_CANDIDATES` less ``extra`` (the
+    candidates a strategy adds beside the grid; ``ValueError`` naming the street when even two per
+    probe do not fit)."""
+    least, most = 2 * max(counts), MAX_CANDIDATES - int(extra)
+    if least > most:
+        raise ValueError(f"placement {strategy}: {max(counts)} probes on street '{street.name}' need at least {least + extra} "
+                         f"candidate probes, more than the limit of {MAX_CANDIDATES}; ask for fewer probes per street "
+                         "or use --placement uniform")
+    return int(np.clip(round(street.length / step), least, most))
+
+
+def candidate_grid(street: Street, cells: int, extra: ArrayLike = ()) -> NDArray[np.float64]:
+    """Candidate coordinates (m, ascending, distinct): the centres of ``cells`` equal cells of the
+    street, and the coordinates ``extra`` (e.g. the uniform placements the strategy must be able
+    to choose), rounded to 1 nm."""
+    grid = street.start + (np.arange(cells) + 0.5) * street.length / cells
     both = np.concatenate([grid, np.asarray(extra, np.float64).reshape(-1)])
     return np.unique(np.round(both, 9))
 
 
-def check_candidates(street: Street, count: int, strategy: str, seconds: float) -> None:
-    """``ValueError`` (one line, with the estimate) when a street needs more than
-    :data:`MAX_CANDIDATES` candidates."""
-    if count > MAX_CANDIDATES:
-        raise ValueError(f"placement {strategy}: street '{street.name}' ({street.length:g} m) needs {count} candidate "
-                         f"probes (~{seconds / 60:.0f} min of pre-captures and evaluator passes), more than the limit "
-                         f"of {MAX_CANDIDATES}; ask for fewer probes per street or use --placement uniform")
+def note_cost(context: PlacementContext, street: Street, strategy: str, seconds: float) -> None:
+    """Say on stderr what a long placement will cost (over :data:`NOTE_SECONDS`, when
+    ``context.verbose``): the street, its length and the estimate."""
+    if context.verbose and seconds > NOTE_SECONDS:
+        print(f"envcap: note: placement {strategy}: street '{street.name}' ({street.length:g} m): roughly "
+              f"{seconds / 60:.0f} min of pre-captures and evaluator passes at llvmpipe rates", file=sys.stderr, flush=True)
 
 
 def pass_seconds(candidates: int, points: int, pairs: int, powers: int) -> float:
@@ -90,14 +106,16 @@ def error_matrix(context: PlacementContext, candidates: ProbeSet, points: Sequen
                  powers: Sequence[float], resolution: int, reach: float = math.inf) -> NDArray[np.float64]:
     """``E`` ``(K, J)``: the error at point ``j`` of ``method`` reading only candidate ``k``
     (module docstring), mean over ``powers``; ``inf`` where the candidate is more than ``reach``
-    m along the street from the point (not evaluated).  Truth captures of ``resolution``^2."""
+    m along the street from the point (not evaluated).  Truth captures of ``resolution``^2,
+    filtered as :func:`envcap.evaluate.run.evaluate_scene` filters them: where candidate ``k`` is
+    the one the runtime picks at point ``j``, ``E[k, j]`` is the evaluator's own error there."""
     scene = dataclasses.replace(context.scene, streets=[s for s in context.scene.streets
                                                         if s.name == candidates.manifest.streets[0].name])
     settings = check_settings(scene, candidates, [method], powers, (False,), resolution)
     meth = methods.get(method)
-    truth = TruthRenderer(scene, settings.resolution, context.gl, quality="composed")
+    truth = TruthRenderer(scene, settings.resolution, context.gl, quality=settings.quality)   # the evaluator's
     try:
-        pred = Predictor(candidates, sky=truth.sky, ctx=context.gl, quality="composed")
+        pred = Predictor(candidates, sky=truth.sky, ctx=context.gl, quality=settings.quality)
         ev = PositionEvaluator(settings, truth, pred)
         probes = pred.streets[candidates.manifest.streets[0].name]
         s = probes.positions[:, probes.along]

@@ -1,7 +1,7 @@
 """``density``: probes spread as the square root of a measured error rate along the street.
 
 The cheap error-driven strategy of docs/placement.md.  Candidates every ``step_m`` m on the probe
-line are baked at ``resolution``^2 and each is evaluated at its neighbours' positions only (one
+line (at least two per asked probe, at most :data:`envcap.placement.candidates.MAX_CANDIDATES`) are baked at ``resolution``^2 and each is evaluated at its neighbours' positions only (one
 evaluator pass, :func:`envcap.placement.candidates.error_matrix`, with the points on the probe
 line: no training points off it).  The error rate between candidates ``k`` and ``k + m``, ``m``
 candidates apart (``m step`` ~ a quarter of the mean spacing of the asked count, the mean distance
@@ -31,8 +31,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from envcap.evaluate.sweep import positions_from_array
-from envcap.placement.candidates import (bake_candidates, candidate_grid, check_candidates, error_matrix, notes_number,
-                                         pass_seconds)
+from envcap.placement.candidates import (bake_candidates, candidate_grid, error_matrix, grid_cells, note_cost,
+                                         notes_number, pass_seconds)
 from envcap.placement.partition import density_positions
 from envcap.placement.registry import PlacementContext, PlacementStrategy, StreetPlacement
 from envcap.probeset.placement import uniform_along
@@ -59,13 +59,11 @@ def place(context: PlacementContext, street: Street, counts: Sequence[int], meth
           exponent: float = 0.5, floor: float = 0.1) -> list[StreetPlacement]:
     """Probes at the quantiles of ``g^exponent`` for each of ``counts`` (module docstring)."""
     length = street.length
-    step = min(float(step_m), length / (2 * max(counts)))
-    s = candidate_grid(street, step)
+    s = candidate_grid(street, grid_cells(street, float(step_m), counts, 0, "density"))
     cell = length / s.size
     offsets = {n: max(1, int(round(length / (4 * n * cell)))) for n in counts}
     reach = (max(offsets.values()) + 0.5) * cell
-    check_candidates(street, s.size, "density", pass_seconds(s.size, s.size, s.size * (2 * max(offsets.values()) + 1),
-                                                             len(powers)))
+    note_cost(context, street, "density", pass_seconds(s.size, s.size, s.size * (2 * max(offsets.values()) + 1), len(powers)))
     res = min(int(resolution), int(context.resolution))
     cand = bake_candidates(context, street, s, res, "density")
     at_candidates = positions_from_array(cand.manifest, [p.position for p in cand.manifest.streets[0].probes])

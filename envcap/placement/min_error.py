@@ -1,6 +1,7 @@
 """``min_error``: the placement with the least evaluated error on the street's own training points.
 
-Candidates every ``step_m`` m along the street (at least two per asked probe), plus the uniform
+Candidates every ``step_m`` m along the street (at least two per asked probe, at most
+:data:`envcap.placement.candidates.MAX_CANDIDATES` in all), plus the uniform
 placement of every asked count (so that uniform is always one of the choices), are baked at
 ``resolution``^2 (:func:`envcap.placement.candidates.bake_candidates`).  Training points are drawn
 like the evaluator's default sweep over the whole street (jittered strata along it, lateral within
@@ -28,8 +29,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from envcap.evaluate.sweep import Sweep, sample_positions
-from envcap.placement.candidates import (bake_candidates, candidate_grid, check_candidates, error_matrix, notes_number,
-                                         pass_seconds, point_along)
+from envcap.placement.candidates import (bake_candidates, candidate_grid, error_matrix, grid_cells, note_cost,
+                                         notes_number, pass_seconds, point_along)
 from envcap.placement.partition import best_subset, served_error
 from envcap.placement.registry import PlacementContext, PlacementStrategy, StreetPlacement
 from envcap.probeset.placement import uniform_along
@@ -44,11 +45,12 @@ def place(context: PlacementContext, street: Street, counts: Sequence[int], meth
           points_per_m: float = 0.5, min_points: int = 16, seed: int = 101, reach: float = 3.0) -> list[StreetPlacement]:
     """The least-error placement of each of ``counts`` probes on ``street`` (module docstring)."""
     length = street.length
-    step = min(float(step_m), length / (2 * max(counts)))
     uniforms = {n: np.round(uniform_along(street, n), 9) for n in counts}
-    s = candidate_grid(street, step, np.concatenate(list(uniforms.values())))
+    cells = grid_cells(street, float(step_m), counts, sum(counts), "min_error")
+    s = candidate_grid(street, cells, np.concatenate(list(uniforms.values())))
     n_points = min(MAX_POINTS, max(int(min_points), math.ceil(points_per_m * length)))
-    check_candidates(street, s.size, "min_error", pass_seconds(s.size, n_points, s.size * n_points, len(powers)))
+    pairs = int(sum(min(s.size, 2 * reach * s.size / min(counts) + 1) for _ in range(n_points)))
+    note_cost(context, street, "min_error", pass_seconds(s.size, n_points, pairs, len(powers)))
     res = min(int(resolution), int(context.resolution))
     cand = bake_candidates(context, street, s, res, "min_error")
     points = sample_positions(cand.manifest, Sweep(per_street=n_points, seed=seed))

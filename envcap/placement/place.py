@@ -102,7 +102,7 @@ def place_scene(scene: Scene, strategy: str | PlacementStrategy = "uniform", *, 
     along: dict[str, NDArray[np.float64]] = {}
     notes: dict[str, Any] = {}
     try:
-        context = PlacementContext(scene, float(height), int(resolution), gl)
+        context = PlacementContext(scene, float(height), int(resolution), gl, verbose)
         for st, n in zip(scene.streets, counts):
             placed = strat(context, st, (int(n),), **settings)[0]
             along[st.name] = placed.along

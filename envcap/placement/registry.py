@@ -31,13 +31,14 @@ from envcap.scene.model import Scene, Street
 class PlacementContext:
     """What a strategy may use besides the street: the ``scene`` (its mesh and sky, for
     pre-captures), the probes' ``height`` above the ground (m), the bake's face size
-    ``resolution`` (texels) and ``gl``, a moderngl context (``None``: a strategy that needs one
-    makes its own)."""
+    ``resolution`` (texels), ``gl``, a moderngl context (``None``: a strategy that needs one
+    makes its own) and ``verbose``: say on stderr what a long placement will cost."""
 
     scene: Scene
     height: float = 2.0
     resolution: int = 64
     gl: Any = None
+    verbose: bool = False
 
 
 @dataclass(frozen=True)
