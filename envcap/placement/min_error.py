@@ -18,7 +18,8 @@ Needs: a GL context (captures).  Parameters: ``method`` (``"depth_refine"``, any
 parallax method), ``powers`` (``(64.0, 256.0)``), ``step_m`` (1.5), ``resolution`` (64, at most
 the bake's), ``points_per_m`` (0.5), ``min_points`` (16), ``seed`` (101), ``reach`` (3.0 mean
 spacings of the smallest count).  Notes per street: ``training_error``, ``uniform_training_error``,
-``candidates``, ``training_points``.
+``floor_training_error`` (each training point served by its best candidate: no placement on the
+candidates does better, whatever its count), ``candidates``, ``training_points``.
 """
 
 from __future__ import annotations
@@ -54,14 +55,16 @@ def place(context: PlacementContext, street: Street, counts: Sequence[int], meth
     res = min(int(resolution), int(context.resolution))
     cand = bake_candidates(context, street, s, res, "min_error")
     points = sample_positions(cand.manifest, Sweep(per_street=n_points, seed=seed))
-    errors = error_matrix(context, cand, points, method, powers, res, reach=reach * length / min(counts))
+    errors = error_matrix(context, cand, points, method, powers, res, reach=reach * length / min(counts) + 1e-9)
     xs = point_along(street, points)
+    floor = notes_number(np.mean(np.min(errors, axis=0)))   # every point served by its best candidate
     out = []
     for n in counts:
-        chosen, err = best_subset(s, xs, errors, n)
+        served = np.abs(xs[None, :] - s[:, None]) <= reach * length / n    # no probe serves a point farther
+        chosen, err = best_subset(s, xs, np.where(served, errors, np.inf), n)
         uniform = np.searchsorted(s, uniforms[n])
         notes = {"training_error": notes_number(err), "uniform_training_error": notes_number(served_error(uniform, s, xs, errors)),
-                 "candidates": int(s.size), "training_points": len(points)}
+                 "floor_training_error": floor, "candidates": int(s.size), "training_points": len(points)}
         out.append(StreetPlacement(s[chosen], notes))
     return out
 

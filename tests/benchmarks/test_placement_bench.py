@@ -29,7 +29,10 @@ def test_bench_placement_smallest(tmp_path, capsys, gl_ctx):
     doc = json.loads((out / "placement.json").read_text())
     rows = list(csv.DictReader((out / "placement.csv").open()))
     assert len(rows) == len(doc["rows"]) == 2 * 2            # strategies x methods (one count, one power)
-    assert all(float(r["ratio_to_uniform"]) == 1.0 for r in rows if r["strategy"] == "uniform")
+    assert all(float(r["ratio_to_uniform"]) == 1.0 and float(r["ratio_ci95"]) == 0.0 for r in rows if r["strategy"] == "uniform")
+    assert [len(p) for p in doc["per_position"]] == [2 * 2] * 4              # positions x streets, every row
+    for r, each in zip(doc["rows"], doc["per_position"]):
+        assert np.mean(each) == pytest.approx(r["error"], rel=1e-12)
     # independent: the uniform row is envcap evaluate's error for the same bake at the same positions
     scene = street_segment(load_scene("crossing"), 20.0)
     along = doc["scenes"]["crossing"]["placed"]["uniform"]["along"]["2"]
