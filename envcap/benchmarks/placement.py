@@ -8,7 +8,8 @@ per street (default 3,6,12), all counts from one analysis per street (its wall t
 of placing); each placement is baked (``--resolution``, 64^2, ``quality="composed"`` as ``envcap
 capture``) and evaluated by :func:`envcap.evaluate.run.evaluate_scene` on the *same* positions for
 every strategy and count: ``--positions`` per street drawn like the default sweep over the whole
-street (seed 5, the evaluator's; ``min_error`` trains on seed 101), truth at 64^2, the methods
+street (``--seed``, default 5, the evaluator's; ``min_error`` trains on seed 101; each position is
+evaluated on the street it was drawn on, as ``envcap evaluate`` does), truth at 64^2, the methods
 ``--methods`` (default ``nearest``, ``blend``, ``depth_refine``) at ``--powers`` (64, 256), sun
 out of the sky (docs/evaluation.md).
 
@@ -35,7 +36,7 @@ import numpy as np
 
 from envcap.benchmarks.placement_plot import pareto_figure, street_figure
 from envcap.evaluate.run import evaluate_scene
-from envcap.evaluate.sweep import Sweep, sample_positions
+from envcap.evaluate.sweep import Sweep
 from envcap.gpu.context import create_context
 from envcap.outputs import atomic_output_dir
 from envcap.placement import get, registered
@@ -143,15 +144,14 @@ def run(args: argparse.Namespace) -> int:
         for name in opts["scenes"]:
             scene = street_segment(load_scene(name), args.length)
             placed = place_all(scene, strategies, counts, args.resolution, ctx, opts["params"])
-            positions = None
+            sweep = Sweep(per_street=args.positions, seed=args.seed)
             for n in counts:
                 for strat in strategies:
                     table = PlacementTable(strat, n, {}, round(placed[strat]["seconds"], 3), {})
                     ps = bake_probe_set(scene, resolution=args.resolution, quality="composed", ctx=ctx,
                                         along=placed[strat]["along"][n], placement=table, progress=False)
-                    if positions is None:     # the same positions for every placement of this scene
-                        positions = np.array([p.position for p in sample_positions(ps.manifest, Sweep(per_street=args.positions, seed=args.seed))])
-                    res = evaluate_scene(scene, ps, positions=positions, methods=meths, lobe_powers=powers, resolution=64,
+                    # a placed set's sweep covers each whole street: the same positions (and streets) for every placement
+                    res = evaluate_scene(scene, ps, sweep=sweep, methods=meths, lobe_powers=powers, resolution=64,
                                          ctx=ctx, materials=(), keep_worst=0, floor_probes=0, sun_variants=(False,),
                                          progress=False)
                     for m in meths:

@@ -6,7 +6,8 @@ This is the main job of envcap (``envcap capture SCENE --out DIR``):
    rough time estimated and refused past their limits, the mesh and the probes checked against
    float32 range, the capture's face atlas against the GL limits (estimate printed on big jobs);
 1. the scene's sky (``scene.sky.build()``, see :class:`envcap.sky.SkySpec`) and its float32 cube;
-2. probes along each street's center line (:func:`envcap.probeset.placement.place_probes`; a
+2. probes along each street's center line (:func:`envcap.probeset.placement.place_probes`, or at
+   the coordinates a placement strategy chose, ``along=``: :mod:`envcap.placement`; a
    street at an angle places them in its own frame, :mod:`envcap.core.street_frame`, and its
    probes' cubes are captured with their faces along that frame's axes, planes fitted there);
 3. HDR cube captures of all probes (:class:`envcap.capture.renderer.CubeCapture`), running only the

@@ -9,7 +9,7 @@ import pytest
 
 from envcap.cli import main
 from envcap.evaluate.run import evaluate_scene
-from envcap.evaluate.sweep import Sweep, sample_positions
+from envcap.evaluate.sweep import Sweep
 from envcap.probeset.bake import bake_probe_set
 from envcap.probeset.placement_table import PlacementTable
 from envcap.scene import load_scene
@@ -38,8 +38,7 @@ def test_bench_placement_smallest(tmp_path, capsys, gl_ctx):
     along = doc["scenes"]["crossing"]["placed"]["uniform"]["along"]["2"]
     ps = bake_probe_set(scene, resolution=16, quality="composed", ctx=gl_ctx, along=along,
                         placement=PlacementTable("uniform", 2), progress=False)
-    pos = np.array([p.position for p in sample_positions(ps.manifest, Sweep(per_street=2, seed=5))])
-    res = evaluate_scene(scene, ps, positions=pos, methods=["depth_refine"], lobe_powers=(64.0,), resolution=64,
+    res = evaluate_scene(scene, ps, sweep=Sweep(per_street=2, seed=5), methods=["depth_refine"], lobe_powers=(64.0,), resolution=64,
                          ctx=gl_ctx, materials=(), keep_worst=0, floor_probes=0, sun_variants=(False,), progress=False)
     got = next(r["error"] for r in doc["rows"] if r["strategy"] == "uniform" and r["method"] == "depth_refine")
     assert got == pytest.approx(res.error("depth_refine", 64.0, sun=False), rel=1e-12)

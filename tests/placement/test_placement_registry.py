@@ -132,3 +132,37 @@ def test_hard_inputs(crossing):
         with pytest.raises(ValueError, match="--probes-per-street must be a whole number of probes >= 1"):
             check_probes_per_street(bad)
     assert check_probes_per_street(" 12 ") == 12
+
+
+def test_a_framed_street_on_terrain_places_like_the_default(tmp_path, gl_ctx):
+    """A street at 30 deg that follows a ramp: uniform coordinates give the default bake's probes
+    (positions, grounds, slopes); a strategy's coordinates stand on the terrain under them."""
+    import dataclasses
+
+    import trimesh
+
+    from envcap.scene import scene_from_dict
+
+    xs = np.arange(-100.0, 101.0, 20.0)
+    gx, gz = np.meshgrid(xs, xs)
+    n = len(xs)
+    i = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    faces = np.concatenate([np.stack([i, i + n, i + 1], 1), np.stack([i + 1, i + n, i + n + 1], 1)])
+    trimesh.Trimesh(np.stack([gx.ravel(), 0.05 * gx.ravel(), gz.ravel()], 1), faces, process=False).export(tmp_path / "r.ply")
+    doc = {"name": "ramp", "effects": [], "sky": {"type": "uniform", "radiance": 1.0}, "ground": {"enabled": False},
+           "mesh": {"file": "r.ply"},
+           "streets": [{"name": "up", "axis": "x", "start": -30.0, "end": 30.0, "width": 12.0, "follow_terrain": True}]}
+    scene = scene_from_dict(doc, base_dir=tmp_path)
+    scene = dataclasses.replace(scene, streets=[dataclasses.replace(scene.streets[0], yaw_deg=30.0, origin_xz=(2.0, -3.0))])
+    a = bake_probe_set(scene, resolution=4, spacing=12.0, filter_levels=False, ctx=gl_ctx, progress=False)
+    sp = place_scene(scene, "uniform", spacing=12.0)
+    b = bake_probe_set(scene, resolution=4, filter_levels=False, ctx=gl_ctx, progress=False, along=sp.along,
+                       placement=sp.table)
+    assert a.manifest.streets[0].probes == b.manifest.streets[0].probes
+    c = bake_probe_set(scene, resolution=4, filter_levels=False, ctx=gl_ctx, progress=False,
+                       along={"up": [-29.0, -20.0, 3.0]}, placement=sp.table)
+    probes = c.manifest.streets[0].probes
+    frame = c.manifest.streets[0].frame_positions()
+    np.testing.assert_allclose(frame[:, 0], [-29.0, -20.0, 3.0], atol=1e-9)
+    x = np.array([p.position[0] for p in probes])
+    np.testing.assert_allclose([p.position[1] for p in probes], 0.05 * x + 2.0, atol=1e-4)
