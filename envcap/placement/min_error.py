@@ -8,8 +8,9 @@ like the evaluator's default sweep over the whole street (jittered strata along 
 the facades less 1 m, 0.3-3 m above the ground) but with their own ``seed`` (101; the evaluator's
 is 5, so a bench never scores a placement on the points it was chosen on), ``points_per_m`` per
 meter of street (at least ``min_points``).  One evaluator pass measures ``E[k, j]``, the error of
-``method`` at point ``j`` reading only candidate ``k`` (mean over ``powers``; candidates farther
-than ``reach`` mean spacings from a point are not evaluated), and the exact dynamic programme of
+``method`` at point ``j`` reading only candidate ``k`` (mean over ``powers``; a candidate farther
+than ``reach`` mean spacings ``length / count`` from a point never serves it, and is not evaluated
+there beyond the reach of the smallest count), and the exact dynamic programme of
 :func:`envcap.placement.partition.best_subset` picks the ``count`` candidates whose nearest-probe
 service of the training points has the least mean error (docs/placement.md).  Its training error
 is never above uniform's (uniform is a candidate subset).
@@ -17,7 +18,7 @@ is never above uniform's (uniform is a candidate subset).
 Needs: a GL context (captures).  Parameters: ``method`` (``"depth_refine"``, any registered
 parallax method), ``powers`` (``(64.0, 256.0)``), ``step_m`` (1.5), ``resolution`` (64, at most
 the bake's), ``points_per_m`` (0.5), ``min_points`` (16), ``seed`` (101), ``reach`` (3.0 mean
-spacings of the smallest count).  Notes per street: ``training_error``, ``uniform_training_error``,
+spacings).  Notes per street: ``training_error``, ``uniform_training_error``,
 ``floor_training_error`` (each training point served by its best candidate: no placement on the
 candidates does better, whatever its count), ``candidates``, ``training_points``.
 """
