@@ -23,7 +23,7 @@ from import_graph import PIPELINE, import_graph  # noqa: E402
 LAYOUT = {
     "scene": (0, 0), "capture": (1, 0), "prefilter": (2, 0), "probeset": (3, 0), "runtime": (4, 0), "dynamic": (5, 0),
     "evaluate": (6, 0), "viewer": (7, 0),
-    "sky": (0.5, 1), "formats": (2.5, 1), "outputs": (3.5, 1), "city": (4.5, 1),
+    "sky": (0.5, 1), "formats": (2.5, 1), "outputs": (3.5, 1), "city": (4.5, 1), "placement": (5.5, 1),
     "core": (1.5, 2), "gpu": (3, 2),
     "cli": (6.5, 2), "benchmarks": (6.5, 1), "export": (7.5, 1),
 }
@@ -36,7 +36,7 @@ ROLE = {
     "sky": "sky models + sun", "formats": "KTX2, EXR, PNG writers", "outputs": "safe output dirs",
     "core": "cube, lobes, colour, checks", "gpu": "EGL, cube arrays, uniforms", "cli": "envcap COMMAND",
     "benchmarks": "envcap bench NAME", "city": "shards, index, Dask", "dynamic": "spheres, avatars (Eq. 4-7)",
-    "viewer": "WebGL2 page", "export": "envcap export TARGET",
+    "viewer": "WebGL2 page", "export": "envcap export TARGET", "placement": "probes where the error is",
 }
 
 

@@ -13,6 +13,8 @@ from envcap.core.rungs import LADDER_MODES
 from envcap.formats.registry import default_writer_names
 from envcap.formats.scene_gltf_writer import registered_scene_writer
 from envcap.outputs import claim_output_dir
+from envcap.placement import get as get_placement, registered as placement_names
+from envcap.placement.place import check_probes_per_street, place_scene
 from envcap.prefilter import QUALITIES
 from envcap.probeset.bake_output import bake_to_directory
 from envcap.probeset.progress import BakeProgress
@@ -25,13 +27,23 @@ less CPU than ``"default"`` and within 0.5 % of the exact reference at every lev
 The library's :func:`envcap.probeset.bake.bake_probe_set` keeps ``"default"``."""
 
 
+class _Given(argparse.Action):
+    """Store the value and note that the option was given (``args.<dest>_given``): ``--spacing``
+    and ``--probes-per-street`` exclude each other only when both are typed."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        setattr(namespace, self.dest, values)
+        setattr(namespace, f"{self.dest}_given", True)
+
+
 def add_bake_arguments(p: argparse.ArgumentParser, resolution: int, *, files: bool = False, spacing: float = 5.0) -> None:
     """Options shared by ``capture`` and ``demo``; ``files``: whether the per-probe EXRs and the
     previews are written unless ``--no-exr`` / ``--no-previews`` (``demo``) or only with
     ``--exr`` / ``--previews`` (``capture``: the probe set needs neither); ``resolution`` and
     ``spacing`` (m): the defaults, as the help says them."""
     p.add_argument("--resolution", type=int, default=resolution, metavar="N", help=f"face size in texels (default {resolution})")
-    p.add_argument("--spacing", type=float, default=spacing, metavar="M",
+    p.add_argument("--spacing", type=float, default=spacing, metavar="M", action=_Given,
                    help=f"probe spacing along the street in meters (default {spacing:g})")
     p.add_argument("--height", type=float, default=2.0, metavar="M", help="probe height above the ground in meters (default 2)")
     p.add_argument("--quality", default=BAKE_QUALITY, choices=list(QUALITIES),
@@ -69,6 +81,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ladder", choices=list(LADDER_MODES), default="paper",
                    help="lobe ladder: paper (default: one chain), half_octave (4 rungs per level, ~4x the texels: "
                         "holds cos^w between levels and at wide lobes) or octave (2 rungs, ~2x); docs/lobes.md")
+    p.add_argument("--placement", default=None, metavar="NAME",
+                   help=f"how the probes are placed along each street: {', '.join(placement_names())} "
+                        "(default uniform, at --spacing; docs/placement.md)")
+    p.add_argument("--probes-per-street", default=None, metavar="N",
+                   help="place N probes on every street, whatever its length (instead of --spacing)")
     add_city_arguments(p)
     p.set_defaults(func=run)
 
@@ -77,6 +94,18 @@ def check_bake_arguments(args: argparse.Namespace) -> None:
     """Refuse bad bake options before any output is claimed (``ValueError``)."""
     if args.resolution < 1:
         raise ValueError(f"--resolution must be a positive number of texels, got {args.resolution}")
+    if getattr(args, "placement", None) is not None:
+        get_placement(args.placement)                    # unknown: one line with the known names
+    if getattr(args, "probes_per_street", None) is not None:
+        check_probes_per_street(args.probes_per_street)
+        if getattr(args, "spacing_given", False):
+            raise ValueError("--spacing and --probes-per-street both given: give one (--probes-per-street N puts N probes "
+                             "on every street whatever its length, --spacing M one every M meters)")
+
+
+def placement_requested(args: argparse.Namespace) -> bool:
+    """Whether the probes are placed by a strategy (``--placement`` or ``--probes-per-street``)."""
+    return getattr(args, "placement", None) is not None or getattr(args, "probes_per_street", None) is not None
 
 
 def bake_to_dir(args: argparse.Namespace, scene_name: str, out: str | os.PathLike[str]) -> Path:
@@ -90,10 +119,19 @@ def bake_to_dir(args: argparse.Namespace, scene_name: str, out: str | os.PathLik
                + ([] if getattr(args, "inverse_distance", None) is False else ["inverse_distance"]))
     quiet = bool(getattr(args, "quiet", False))
     report = BakeProgress("off" if quiet else "auto")
+    placed = {}
+    if placement_requested(args):
+        n = args.probes_per_street
+        sp = place_scene(scene, args.placement or "uniform", probes_per_street=None if n is None else check_probes_per_street(n),
+                         spacing=args.spacing, height=args.height, resolution=args.resolution, verbose=not quiet)
+        placed = {"along": sp.along, "placement": sp.table}
+        if not quiet:
+            print(f"placed {sum(a.size for a in sp.along.values())} probes on {len(sp.along)} street(s) by "
+                  f"{sp.table.strategy} in {sp.table.seconds:.1f} s")
     with registered_scene_writer(scene if getattr(args, "scene_gltf", False) else None) as scene_writer:
         path, ps = bake_to_directory(scene, out, exr=args.exr, previews=args.previews, writers=writers + scene_writer,
                                      report=report, resolution=args.resolution, spacing=args.spacing, height=args.height,
-                                     quality=args.quality, sun_in_sky=args.sun_in_sky, verbose=not quiet,
+                                     quality=args.quality, sun_in_sky=args.sun_in_sky, verbose=not quiet, **placed,
                                      **({} if getattr(args, "ladder", "paper") == "paper" else {"ladder_mode": args.ladder}))
     n = ps.layer_count
     print(f"wrote {n} probes ({args.resolution}^2 x 6, {len(ps.levels)} levels) of '{scene.name}' to {path}"
@@ -110,6 +148,9 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--sky-visibility is for one scene's probe set, not a city bake")
         if getattr(args, "inverse_distance", None):      # None: the default, off for a city
             raise ValueError("--inverse-distance is for one scene's probe set, not a city bake")
+        if placement_requested(args):
+            raise ValueError("--placement and --probes-per-street are for one scene's probe set, not a city bake "
+                             "(city shards place their probes at --spacing)")
         if getattr(args, "ladder", "paper") != "paper":
             raise ValueError("--ladder is for one scene's probe set, not a city bake (city shards hold the paper's chain)")
         return run_city(args)

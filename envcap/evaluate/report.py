@@ -82,6 +82,14 @@ def _md_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     return "\n".join(lines)
 
 
+def _spacing_words(meta: dict) -> str:
+    """How the probes stand: ``every 5.0 m``, or ``placed by min_error (mean spacing 10 m)``."""
+    placed = meta.get("placement")
+    if placed is None:
+        return f"every {meta['probe_spacing']} m"
+    return f"placed by {placed} (mean spacing {meta['probe_spacing']:.3g} m)"
+
+
 def _markdown(results: Sequence[EvaluationResult]) -> str:
     parts = ["# envcap parallax evaluation", "",
              "Error = solid-angle weighted relative RMSE of luminance between the prediction from the probe set "
@@ -92,7 +100,7 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
         best = best_method(res)
         parts += [f"## {res.scene}", "",
                   f"{res.meta['n_positions']} positions, truth {res.meta['resolution']}² per face, probes "
-                  f"{res.meta['probe_resolution']}² every {res.meta['probe_spacing']} m ({res.meta['probe_count']} probes). "
+                  f"{res.meta['probe_resolution']}² {_spacing_words(res.meta)} ({res.meta['probe_count']} probes). "
                   f"Best method: **{best}**.", ""]
         rat = ratios(res)
         variants = sorted(res.meta.get("sun_variants", [True]), key=lambda v: v != res.meta.get("primary_sun", True))

@@ -348,6 +348,7 @@ def _meta(scene: str, probe_set: ProbeSet, settings: EvaluationSettings, sweep: 
     lps = settings.lobe_powers
     return {"resolution": settings.resolution, "probe_resolution": int(probe_set.resolution),
             "probe_spacing": manifest.probe_spacing, "probe_count": int(probe_set.layer_count),
+            "placement": None if manifest.placement is None else manifest.placement.strategy,
             "methods": list(settings.methods), "lobe_powers": [lobe_power_key(w) for w in lps],
             "sun_variants": list(settings.suns), "primary_sun": settings.primary, "quality": settings.quality,
             "sweep": "explicit" if sweep is None else {

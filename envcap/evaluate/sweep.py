@@ -26,7 +26,9 @@ class Sweep:
     """Where to evaluate: ``per_street`` positions on every street of the probe set.
 
     Along the street: jittered strata over the probes' span (half a spacing beyond the end
-    probes), at least ``end_margin`` m from the street's ends.  Lateral: uniform within the
+    probes), at least ``end_margin`` m from the street's ends; for a set whose probes a placement
+    strategy chose (``Manifest.placement``) over the whole street minus ``end_margin``, so that
+    every placement of a street is measured on the same positions.  Lateral: uniform within the
     facades minus ``margin`` m.  Height: uniform in ``heights`` m above the ground.  ``seed``
     fixes everything (street ``i`` uses ``seed + i``).
     """
@@ -170,9 +172,12 @@ def sample_positions(manifest: Manifest, sweep: Sweep = DEFAULT_SWEEP) -> list[E
     for k, ext in enumerate(extents):
         rng = np.random.default_rng(sweep.seed + k)
         s = ext.probe_s
-        half = 0.5 * (s[1] - s[0]) if s.size > 1 else 0.5 * float(manifest.probe_spacing)
-        lo = max(ext.start + sweep.end_margin, s[0] - half)
-        hi = min(ext.end - sweep.end_margin, s[-1] + half)
+        if manifest.placement is None:   # uniform spacing: the probes' span, half a spacing beyond the end probes
+            half = 0.5 * (s[1] - s[0]) if s.size > 1 else 0.5 * float(manifest.probe_spacing)
+            lo = max(ext.start + sweep.end_margin, s[0] - half)
+            hi = min(ext.end - sweep.end_margin, s[-1] + half)
+        else:                            # placed by a strategy: the whole street, whatever the probes chose
+            lo, hi = ext.start + sweep.end_margin, ext.end - sweep.end_margin
         if not hi > lo:
             lo = hi = 0.5 * (s[0] + s[-1])
         clo, chi = ext.fmin + sweep.margin, ext.fmax - sweep.margin

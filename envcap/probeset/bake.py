@@ -6,7 +6,8 @@ This is the main job of envcap (``envcap capture SCENE --out DIR``):
    rough time estimated and refused past their limits, the mesh and the probes checked against
    float32 range, the capture's face atlas against the GL limits (estimate printed on big jobs);
 1. the scene's sky (``scene.sky.build()``, see :class:`envcap.sky.SkySpec`) and its float32 cube;
-2. probes along each street's center line (:func:`envcap.probeset.placement.place_probes`; a
+2. probes along each street's center line (:func:`envcap.probeset.placement.place_probes`, or at
+   the coordinates a placement strategy chose, ``along=``: :mod:`envcap.placement`; a
    street at an angle places them in its own frame, :mod:`envcap.core.street_frame`, and its
    probes' cubes are captured with their faces along that frame's axes, planes fitted there);
 3. HDR cube captures of all probes (:class:`envcap.capture.renderer.CubeCapture`), running only the
@@ -42,7 +43,8 @@ from envcap.probeset.bake_bounds import check_bake_cost, check_geometry, check_g
 from envcap.probeset.half_range import check_half_range
 from envcap.probeset.ladder_table import LadderTable
 from envcap.probeset.manifest import LobeTable, Manifest, Probe, SceneInfo, SkyInfo, Street, SunInfo, Timings, level_table
-from envcap.probeset.placement import MAX_PROBES, place_probes, probe_count
+from envcap.probeset.placement import MAX_PROBES, check_along, place_probes, place_probes_at, probe_count
+from envcap.probeset.placement_table import PlacementTable
 from envcap.probeset.planes import Planes, fit_planes
 from envcap.probeset.probe_set import ProbeSet
 from envcap.probeset.progress import BakeProgress
@@ -158,6 +160,8 @@ def bake_probe_set(
     report: BakeProgress | None = None,
     on_captured: CapturedFn | None = None,
     writers: Sequence[str] = (),
+    along: Mapping[str, Sequence[float]] | None = None,
+    placement: PlacementTable | None = None,
 ) -> ProbeSet:
     """Capture and filter the probes of every street of ``scene``.
 
@@ -174,6 +178,11 @@ def bake_probe_set(
     ``ctx``: a moderngl context (one is made when ``None``).  Returns the probe set in memory;
     the layers of ``levels`` are the probes of all streets, in street order.
     ``writers``: names of the writers that will run on the result (their memory is in the estimate).
+    ``along``: the probes' along-street coordinates (m, each street's frame) per street name, as a
+    placement strategy chose them (:mod:`envcap.placement`; every street of the scene, each
+    strictly increasing within the street: :func:`envcap.probeset.placement.place_probes_at`)
+    instead of ``spacing``; the manifest's ``probe_spacing`` is then their mean spacing.
+    ``placement``: how they were placed, recorded as the manifest's ``placement`` (``None``: omitted).
 
     ``report``: stages and probes/s (:class:`envcap.probeset.progress.BakeProgress`: sky,
     capture, prefilter); without one the capture and filter show their own tqdm bars as
@@ -194,12 +203,22 @@ def bake_probe_set(
     resolution = positive_int(resolution, "probe resolution (--resolution)")
     if ladder_mode not in LADDER_MODES or (ladder_mode != "paper" and not filter_levels):
         raise ValueError(f"ladder mode (--ladder) must be one of {list(LADDER_MODES)} (a rung ladder needs filtered levels), got {ladder_mode!r}")
-    count = sum(probe_count(st, spacing) for st in scene.streets)  # validates the spacing
+    if along is not None:
+        missing = [st.name for st in scene.streets if st.name not in along]
+        if missing or len(along) != len(scene.streets):
+            raise ValueError(f"probe positions (along) must name every street of scene '{scene.name}' once; "
+                             f"missing {missing}, unknown {sorted(set(along) - {st.name for st in scene.streets})}")
+        along = {st.name: check_along(st, along[st.name]) for st in scene.streets}
+        count = sum(a.size for a in along.values())
+        spacing = sum(st.length for st in scene.streets) / count
+    else:
+        count = sum(probe_count(st, spacing) for st in scene.streets)  # validates the spacing
     estimate = estimate_bake(count, resolution, filter_levels=filter_levels, quality=quality,
                              rungs_per_level=RUNGS_PER_LEVEL.get(ladder_mode, 0), writers=writers)
     check_bake_cost(estimate, sum(st.length for st in scene.streets), spacing, max_probes)
     terrain = GroundHeights(scene.mesh) if any(st.follow_terrain for st in scene.streets) else None
     placements = [place_probes(st, spacing=spacing, height=height, max_probes=max_probes, ground_at=terrain)
+                  if along is None else place_probes_at(st, along[st.name], height, ground_at=terrain)
                   for st in scene.streets]
     positions = np.array([p.position for street in placements for p in street], dtype=np.float64)
     yaws = np.array([st.yaw_deg for st, street in zip(scene.streets, placements) for _ in street], dtype=np.float64)
@@ -304,6 +323,7 @@ def bake_probe_set(
         shadow_cascade_texels_m=shadow_cascades,
         probe_height=float(height),
         probe_spacing=float(spacing),
+        placement=placement,
         streets=tuple(streets),
         effects=tuple(sorted(scene.effects)),
         passes_run=tuple(captured.passes_run),

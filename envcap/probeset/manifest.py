@@ -25,6 +25,7 @@ from envcap.core.street_frame import OptionalFrame, world_to_frame
 from envcap.probeset.float32_range import check_number_ranges, positive_in_float32
 from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
 from envcap.probeset.ladder_table import LadderTable, check_ladder_table
+from envcap.probeset.placement_table import PlacementTable, check_placement_table
 from envcap.probeset.planes import FittedPlanes, PerPlane, Planes
 
 FORMAT = "envcap-probeset"
@@ -38,7 +39,7 @@ AXES = ("x", "z")
 
 __all__ = [
     "FORMAT", "VERSION", "CUBE_CONVENTION", "ManifestError", "ColorInfo", "Level", "LobeTable",
-    "Planes", "PerPlane", "FittedPlanes", "Probe", "Street", "SunInfo", "SkyInfo", "Files", "Timings", "SceneInfo",
+    "Planes", "PerPlane", "FittedPlanes", "PlacementTable", "Probe", "Street", "SunInfo", "SkyInfo", "Files", "Timings", "SceneInfo",
     "Manifest", "level_table", "check_manifest", "read_manifest", "write_manifest", "manifest_text", "dataclass_types",
 ]
 
@@ -234,7 +235,9 @@ class Manifest:
     ``shadow_texel_m`` the sun shadow map's texel size in m (``None``: no sun shadows, omitted);
     ``shadow_cascade_texels_m`` the texel (m) of each shadow cascade, finest first, the last the
     whole fitted map (``None``: one map, omitted);
-    ``probe_height``, ``probe_spacing`` in m;
+    ``probe_height``, ``probe_spacing`` in m (the mean spacing when ``placement`` is present);
+    ``placement`` how the probes were placed (:mod:`envcap.probeset.placement_table`; ``None``:
+    uniformly at ``probe_spacing``, omitted);
     ``effects`` the scene's capture effects and ``passes_run`` the capture passes run;
     ``scene`` (``None`` -> JSON ``{}``: unknown)."""
 
@@ -255,6 +258,7 @@ class Manifest:
     shadow_cascade_texels_m: tuple[float, ...] | None = field(default=None, metadata=_OMIT)
     probe_height: float
     probe_spacing: float
+    placement: PlacementTable | None = field(default=None, metadata=_OMIT)
     streets: tuple[Street, ...]
     effects: tuple[str, ...] = ()
     passes_run: tuple[str, ...] = ()
@@ -391,6 +395,8 @@ def check_manifest(m: Manifest, where: str = "manifest") -> int:
                 raise ManifestError(f"{pw}: layer and index must be >= 0, got {pr.layer}, {pr.index}")
             _check_planes(pr.planes, f"{pw}.planes")
             layers.append(pr.layer)
+    if m.placement is not None:
+        check_placement_table(m.placement, [st.name for st in m.streets], where)
     if sorted(layers) != list(range(len(layers))):
         raise ManifestError(f"{where}: probe layers must be 0..{len(layers) - 1}, each once; got {sorted(layers)}")
     return len(layers)
@@ -416,5 +422,5 @@ def write_manifest(path: str | os.PathLike[str], m: Manifest) -> Path:
 
 def dataclass_types() -> dict[str, type]:
     """The manifest's dataclasses by name (the ``$defs`` names of ``docs/manifest.schema.json``)."""
-    return {c.__name__: c for c in (Manifest, ColorInfo, Level, LobeTable, LadderTable, Street, Probe, Planes, PerPlane,
-                                    FittedPlanes, SkyInfo, SunInfo, Files, Timings, SceneInfo)}
+    return {c.__name__: c for c in (Manifest, ColorInfo, Level, LobeTable, LadderTable, PlacementTable, Street, Probe,
+                                    Planes, PerPlane, FittedPlanes, SkyInfo, SunInfo, Files, Timings, SceneInfo)}

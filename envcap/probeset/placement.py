@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from envcap.core.budget import check_count
 from envcap.core.checks import format_number
@@ -82,12 +82,60 @@ def place_probes(street: Street, spacing: float = 5.0, height: float = 2.0, *,
     (:class:`envcap.core.budget.BudgetError`, naming ``--spacing``).
     """
     check_spacing(spacing)
-    if not (isinstance(height, (int, float)) and math.isfinite(height) and 0 < height < 1000):
-        raise ValueError(f"probe height (--height) must be in (0, 1000) m above the ground, got {_plain(height)}")
+    check_height(height)
     count = check_count(f"probes on street '{street.name}' ({street.length:g} m at spacing {spacing:g} m)",
                         probe_count(street, spacing), max_probes, "--spacing")
+    return place_probes_at(street, uniform_along(street, count, spacing), height, ground_at=ground_at, slope_spacing=spacing)
+
+
+def uniform_along(street: Street, count: int, spacing: float | None = None) -> NDArray[np.float64]:
+    """(count,) along-street coordinates (m, the street's frame) of ``count`` probes ``spacing`` m
+    apart centred on the street (default spacing: ``length / count``, so that the probes stand
+    ``spacing / 2`` from both ends): the positions of :func:`place_probes`."""
+    spacing = street.length / count if spacing is None else spacing
     mid = 0.5 * (street.start + street.end)
-    along = mid + (np.arange(count) - 0.5 * (count - 1)) * spacing
+    return mid + (np.arange(count) - 0.5 * (count - 1)) * spacing
+
+
+def check_height(height: float) -> float:
+    """``height`` (m above the ground) as a float: in (0, 1000) (``ValueError`` naming ``--height``)."""
+    if not (isinstance(height, (int, float)) and math.isfinite(height) and 0 < height < 1000):
+        raise ValueError(f"probe height (--height) must be in (0, 1000) m above the ground, got {_plain(height)}")
+    return float(height)
+
+
+def check_along(street: Street, along: ArrayLike) -> NDArray[np.float64]:
+    """``along`` as a (P,) float64 array of probe coordinates (m, the street's frame) on ``street``:
+    at least one, finite, strictly increasing, within ``[start, end]`` (``ValueError`` naming the
+    street and the first bad value)."""
+    a = np.asarray(along, dtype=np.float64).reshape(-1)
+    if a.size < 1:
+        raise ValueError(f"street '{street.name}': no probe positions given")
+    bad = np.flatnonzero(~np.isfinite(a) | (a < street.start) | (a > street.end))
+    if bad.size:
+        raise ValueError(f"street '{street.name}': probe {int(bad[0])} at {_plain(float(a[bad[0]]))} m lies outside "
+                         f"the street ({street.start:g} .. {street.end:g} m along it)")
+    if np.any(np.diff(a) <= 0):
+        i = int(np.flatnonzero(np.diff(a) <= 0)[0])
+        raise ValueError(f"street '{street.name}': probe positions must increase along the street, "
+                         f"probe {i + 1} ({a[i + 1]:g} m) follows {a[i]:g} m")
+    return a
+
+
+def place_probes_at(street: Street, along: ArrayLike, height: float = 2.0, *,
+                    ground_at: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+                    slope_spacing: float | None = None) -> list[ProbePlacement]:
+    """Probes on ``street``'s center line at the along-street coordinates ``along`` (m, the
+    street's frame; :func:`check_along`), ``height`` m above its ground: the positions a placement
+    strategy chose (:mod:`envcap.placement`); :func:`place_probes` is this at uniform coordinates.
+
+    Ground, terrain and frames as :func:`place_probes`; a terrain-following street's nominal
+    slope is measured over ``slope_spacing`` (m; default the mean spacing ``length / P``,
+    :func:`slope_step`)."""
+    check_height(height)
+    along = check_along(street, along)
+    count = along.size
+    spacing = street.length / count if slope_spacing is None else float(slope_spacing)
     xz = _plan_points(street, along)
     grounds = np.full(count, float(street.ground))
     slopes: list[float | None] = [None] * count
