@@ -20,11 +20,11 @@ from pathlib import Path
 from typing import Any
 
 from envcap import __version__
-from envcap.core.contained_path import name_problem
 from envcap.core.street_frame import OptionalFrame, world_to_frame
 from envcap.probeset.float32_range import check_number_ranges, positive_in_float32
 from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
 from envcap.probeset.ladder_table import LadderTable, check_ladder_table
+from envcap.probeset.manifest_files import Files, check_files
 from envcap.probeset.placement_table import PlacementTable, check_placement_table
 from envcap.probeset.planes import FittedPlanes, PerPlane, Planes
 
@@ -177,28 +177,6 @@ class SkyInfo:
 
 
 @dataclass(frozen=True)
-class Files:
-    """Files of the probe-set directory, relative to it; filled by the writers
-    (:mod:`envcap.formats.registry`).  ``extra``: entries of writers registered outside envcap
-    (JSON: more keys of this object, a path or a list of paths each)."""
-
-    probes: str | None = field(default=None, metadata=_OMIT)
-    sky: str | None = field(default=None, metadata=_OMIT)
-    exr: tuple[str, ...] | None = field(default=None, metadata=_OMIT)
-    previews: tuple[str, ...] | None = field(default=None, metadata=_OMIT)
-    sky_preview: str | None = field(default=None, metadata=_OMIT)
-    contact_sheet: str | None = field(default=None, metadata=_OMIT)
-    extra: dict[str, Any] = field(default_factory=dict, metadata={"json": "rest"})
-
-    @staticmethod
-    def from_json(obj: Any) -> "Files":
-        """The entries of JSON object ``obj`` (known keys typed, others in ``extra``)."""
-        files = from_json(Files, obj, "files")
-        _check_files(files, "files")
-        return files
-
-
-@dataclass(frozen=True)
 class Timings:
     """Bake times in seconds: sky, capture (all passes), per capture pass (``passes_s``, JSON
     keys ``pass_<name>_s``), prefilter and the whole command; ``None`` when not measured."""
@@ -324,20 +302,6 @@ _FIXED = ("format", "version", "units", "up_axis", "handedness", "color")
 """Manifest fields whose value is fixed (their defaults)."""
 
 
-def _check_files(files: Files, where: str) -> None:
-    """Every entry a path or a list of paths, each inside the set (a manifest is untrusted input:
-    :func:`envcap.core.contained_path.name_problem`, no absolute path, no ``..``)."""
-    entries: dict[str, Any] = {f.name: getattr(files, f.name) for f in fields(Files) if f.name != "extra"}
-    for key, value in files.extra.items():
-        if not (isinstance(value, str) or (isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value))):
-            raise ManifestError(f"{where}.{key}: must be a path or a list of paths, got {value!r}")
-        entries[key] = value
-    for key, value in entries.items():
-        for name in ([value] if isinstance(value, str) else value or ()):
-            if (problem := name_problem(name)) is not None:
-                raise ManifestError(f"{where}.{key}: {name!r} is not a path inside the probe set: {problem}")
-
-
 def _check_planes(p: Planes, where: str) -> None:
     if not p.facade_max > p.facade_min:
         raise ManifestError(f"{where}: facade_max {p.facade_max} must exceed facade_min {p.facade_min}")
@@ -370,7 +334,7 @@ def check_manifest(m: Manifest, where: str = "manifest") -> int:
         raise ManifestError(f"{where}: lobes must list a size and a power per level ({len(m.levels)})")
     if m.ladder is not None:
         check_ladder_table(m.ladder, tuple(lv.size for lv in m.levels), where)
-    _check_files(m.files, f"{where}: files")
+    check_files(m.files, f"{where}: files")
     _positive(m.probe_height, f"{where}: probe_height", "meters")
     _positive(m.probe_spacing, f"{where}: probe_spacing", "meters")
     if m.sky.format != SKY_FORMAT:
