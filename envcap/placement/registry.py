@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from envcap.core.named_registry import NamedRegistry
 from envcap.probeset.placement import check_along
 from envcap.scene.model import Scene, Street
 
@@ -106,32 +107,14 @@ class PlacementStrategy:
         return tuple(checked)
 
 
-_registry: dict[str, PlacementStrategy] = {}
+_registry: NamedRegistry[PlacementStrategy] = NamedRegistry("placement strategy", PlacementStrategy)
 
-
-def register(strategy: PlacementStrategy, replace: bool = False) -> PlacementStrategy:
-    """Add ``strategy`` under its name (``replace``: allow overriding one of the same name); returns it."""
-    if strategy.name in _registry and not replace:
-        raise ValueError(f"placement strategy {strategy.name!r} is already registered")
-    _registry[strategy.name] = strategy
-    return strategy
-
-
-def unregister(name: str) -> PlacementStrategy:
-    """Remove and return the strategy ``name``."""
-    return _registry.pop(get(name).name)
-
-
-def get(strategy: str | PlacementStrategy) -> PlacementStrategy:
-    """The registered strategy of that name (a :class:`PlacementStrategy` is returned as is;
-    ``ValueError`` listing the known names)."""
-    if isinstance(strategy, PlacementStrategy):
-        return strategy
-    if strategy not in _registry:
-        raise ValueError(f"unknown placement strategy {strategy!r}; known: {', '.join(_registry)}")
-    return _registry[strategy]
-
-
-def registered() -> tuple[str, ...]:
-    """Names of the registered strategies, in registration order."""
-    return tuple(_registry)
+register = _registry.register
+"""Add a placement strategy under its name (``replace``: allow overriding one of the same name); returns it."""
+unregister = _registry.unregister
+"""Remove and return the placement strategy of that name."""
+get = _registry.get
+"""The registered placement strategy of that name (a :class:`PlacementStrategy` is returned as is; ``ValueError``
+listing the known names)."""
+registered = _registry.names
+"""Names of the registered placement strategies, in registration order."""

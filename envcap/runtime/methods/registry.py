@@ -16,6 +16,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from envcap.core.named_registry import NamedRegistry
 from envcap.runtime.chains import ProbeChains
 from envcap.runtime.street import PLANE_SETS, RuntimeStreet
 
@@ -68,31 +69,14 @@ class ParallaxMethod:
         return self.street_rgba(chains, street, x, d, w, **self.parameters)
 
 
-_registry: dict[str, ParallaxMethod] = {}
+_registry: NamedRegistry[ParallaxMethod] = NamedRegistry("parallax method", ParallaxMethod)
 
-
-def register(method: ParallaxMethod, replace: bool = False) -> ParallaxMethod:
-    """Add ``method`` under its name (``replace``: allow overriding one of the same name); returns it."""
-    if method.name in _registry and not replace:
-        raise ValueError(f"parallax method {method.name!r} is already registered")
-    _registry[method.name] = method
-    return method
-
-
-def unregister(name: str) -> ParallaxMethod:
-    """Remove and return the method ``name``."""
-    return _registry.pop(get(name).name)
-
-
-def get(method: str | ParallaxMethod) -> ParallaxMethod:
-    """The registered method of that name (a :class:`ParallaxMethod` is returned as is)."""
-    if isinstance(method, ParallaxMethod):
-        return method
-    if method not in _registry:
-        raise ValueError(f"unknown parallax method {method!r}; known: {', '.join(_registry)}")
-    return _registry[method]
-
-
-def registered() -> tuple[str, ...]:
-    """Names of the registered methods, in registration order."""
-    return tuple(_registry)
+register = _registry.register
+"""Add a parallax method under its name (``replace``: allow overriding one of the same name); returns it."""
+unregister = _registry.unregister
+"""Remove and return the parallax method of that name."""
+get = _registry.get
+"""The registered parallax method of that name (a :class:`ParallaxMethod` is returned as is; ``ValueError``
+listing the known names)."""
+registered = _registry.names
+"""Names of the registered parallax methods, in registration order."""
