@@ -6,7 +6,8 @@ minified (1.9 MB gzipped), four times the three.js build envcap ships, and the E
 from an npm install instead, found in this order:
 
 1. ``$ENVCAP_BABYLON``: a folder holding ``babylon.js`` (the npm package's folder), or the file;
-2. ``$XDG_CACHE_HOME/envcap/npm/node_modules/babylonjs`` (``~/.cache`` without XDG_CACHE_HOME),
+   when set, only there (a wrong path finds nothing rather than another build);
+2. else ``$XDG_CACHE_HOME/envcap/npm/node_modules/babylonjs`` (``~/.cache`` without XDG_CACHE_HOME),
    where :data:`INSTALL_COMMAND` puts it (``.ci/run`` runs it).
 
 The version the page was written and tested against is :data:`VERSION`; another 9.x build is
