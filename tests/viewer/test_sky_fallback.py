@@ -131,7 +131,7 @@ def screenshot(b):
     return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"), np.int32)
 
 
-@pytest.mark.parametrize("page", ["three.html", pytest.param("babylon.html", marks=pytest.mark.slow)])   # Babylon: ~10 s
+@pytest.mark.parametrize("page", ["three.html", pytest.param("babylon.html", marks=pytest.mark.slow)])  # ~10 s
 def test_example_page_sky_pixels_match(chromium, viewer_server, page):
     if page == "babylon.html" and find_babylon() is None:
         pytest.skip("no Babylon.js build installed (.ci/run installs it: envcap.viewer.babylon_build.INSTALL_COMMAND)")
