@@ -38,7 +38,7 @@ from pathlib import Path
 from envcap.formats.webgl2_writer import write_probe_atlas
 from envcap.probeset.manifest import Files, write_manifest
 from envcap.probeset.store import read_probe_set
-from envcap.viewer.babylon_build import find_babylon, missing_note
+from envcap.viewer.babylon_build import INSTALL_COMMAND, find_babylon, missing_note
 from envcap.viewer.city_site import CitySite
 from envcap.viewer.site import ViewerSite
 from envcap.viewer.site_dir import open_site
@@ -118,7 +118,8 @@ def write_web_site(source: Path, out: Path, report: Path | None) -> str:
     (out / "README.md").write_text(README.format(
         what=what, report="; `report/`: its evaluation report" if site.report_dir else "",
         babylon=(f"Babylon.js {babylon.version} (Apache-2.0, `babylon/babylon.LICENSE.md`)" if babylon else
-                 "missing: envcap does not ship Babylon.js; " + missing_note().replace("babylon.html needs Babylon.js, which envcap does not ship: ", ""))))
+                 f"missing: envcap does not ship Babylon.js; run  {INSTALL_COMMAND}  (or set ENVCAP_BABYLON to a "
+                 "folder holding babylon.js) and export again")))
     return ("serve it with any static server, e.g.  python3 -m http.server 8000 --directory {out}\n"
             "and open http://localhost:8000/ (the viewer), http://localhost:8000/three.html (three.js) or\n"
             "http://localhost:8000/babylon.html (Babylon.js)" + ("" if babylon else "\nnote: " + missing_note()))
