@@ -22,7 +22,8 @@
 # its Compatibility renderer (GL) select cube faces by the same table, and Godot's world is
 # right-handed, Y up, like envcap's: the bytes go in as they are, and a world direction looks a
 # probe up unchanged (for a street at an angle: along R d, manifest yaw_deg, as envcap's runtime).
-# Not run here (no Godot on envcap's CI): this script is checked only by reading.
+# Not run here (no Godot on envcap's CI): tests/formats/test_engine_conventions.py checks a line-by-line
+# Python transcription of cube_images against envcap's reader.
 class_name EnvcapProbes
 extends RefCounted
 

@@ -99,3 +99,57 @@ def test_unity_panoramic_needs_the_recipes_quarter_turn(direction_map, axis, con
     for other in (rotation + 90, rotation + 180, rotation + 270):   # any other turn is off
         wrong = lookup(direction_map, *unity_panoramic_coords(d_unity, other))
         assert worst_angle(wrong, d) > 60
+
+
+def gdscript_cube_images(path):
+    """docs/recipes/envcap_probes.gd ``cube_images``, transcribed line by line (Godot does not run
+    here): per layer-face, the bytes of every level of its mip chain down to 1 x 1 (filler below the
+    file's chain), as the script hands them to ``Image.create_from_data``."""
+    b = Path(path).read_bytes()
+    u32 = lambda o: int.from_bytes(b[o:o + 4], "little")   # noqa: E731  (PackedByteArray.decode_u32)
+    u64 = lambda o: int.from_bytes(b[o:o + 8], "little")   # noqa: E731
+    vk, n, layers, faces, levels = u32(12), u32(20), max(u32(32), 1), u32(36), max(u32(40), 1)
+    assert faces == 6 and u32(44) == 0 and vk in (97, 109)
+    texel = 8 if vk == 97 else 16
+    chain = 1
+    while (n >> (chain - 1)) > 1:
+        chain += 1
+    out = []
+    for layer in range(layers):
+        for face in range(6):
+            data, last = b"", b""
+            for k in range(chain):
+                s = max(n >> k, 1)
+                if k < levels:
+                    size = s * s * texel
+                    start = u64(80 + 24 * k) + (layer * 6 + face) * size
+                    last = b[start:start + size]
+                    data += last
+                else:
+                    data += last[:texel] * (s * s)
+            out.append((n, chain, data))
+    return out
+
+
+def test_gdscript_reads_probes_ktx2_layer_faces_and_chains(canyon_probe_set, tmp_path):
+    from envcap.probeset.store import read_probe_set, write_probe_set
+
+    out = write_probe_set(tmp_path / "set", canyon_probe_set, exr=False, previews=False, writers=["ktx2"])
+    ps = read_probe_set(out, distance=False)
+    images = gdscript_cube_images(out / "probes.ktx2")
+    assert len(images) == 6 * ps.layer_count   # CubemapArray: a multiple of 6 layers
+    n = ps.resolution
+    for i, (size, chain, data) in enumerate(images):
+        layer, face = divmod(i, 6)
+        assert size == n and chain == n.bit_length()   # Godot's full chain: n, n/2, ..., 1
+        # Godot's Image size with mipmaps: the sum of the levels' sizes, down to 1 x 1
+        assert len(data) == sum(max(n >> k, 1) ** 2 for k in range(chain)) * 8
+        off = 0
+        for k, level in enumerate(ps.levels):   # each stored level is envcap's texels of this layer and face
+            s = max(n >> k, 1)
+            got = np.frombuffer(data[off:off + s * s * 8], np.float16).reshape(s, s, 4)
+            assert np.array_equal(got.astype(np.float32), np.asarray(level)[layer, face]), (layer, face, k)
+            off += s * s * 8
+    # control: the faces read face-major (a wrong stride) would not match
+    wrong = np.frombuffer(images[1][2][:n * n * 8], np.float16).reshape(n, n, 4)
+    assert not np.array_equal(wrong.astype(np.float32), np.asarray(ps.levels[0])[1, 0])
