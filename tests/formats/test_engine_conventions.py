@@ -12,6 +12,9 @@ the direction the engine looks along, once envcap's frame is mapped to the engin
   looked up along the unturned one.  Unity is left-handed: envcap's geometry goes in with X (or Z)
   negated, and the sky then needs the ``_Rotation`` that docs/recipes/EnvcapPanoramicSky.cs sets
   (read from that file here).
+* Godot's textures from probes.ktx2 (docs/recipes/envcap_probes.gd): the script's reading,
+  transcribed to Python, gives every layer-face the texels envcap's reader gives, each image with
+  the full mip chain Godot's ``Image`` requires.
 """
 
 import re
