@@ -60,6 +60,8 @@ def add_bake_arguments(p: argparse.ArgumentParser, resolution: int, *, files: bo
                    help="also write probes_atlas.ktx2: the probes as face atlases for WebGL2 / three.js (docs/engines.md)")
     p.add_argument("--latlong", action="store_true",
                    help="also write latlong/*.exr: lat-long maps of the sky and of each probe over it (docs/engines.md)")
+    p.add_argument("--latlong-hdr", action="store_true",
+                   help="also write latlong/*.hdr: the same lat-long maps as Radiance .hdr, for Unreal (docs/engines.md)")
     p.add_argument("--sky-visibility", action="store_true",
                    help="also write sky_visibility.ktx2: visibility moments that keep the composite right when the sky "
                         "changes after the bake (docs/lobes.md)")
@@ -115,7 +117,7 @@ def bake_to_dir(args: argparse.Namespace, scene_name: str, out: str | os.PathLik
     t0 = time.perf_counter()
     scene = load_scene(scene_name)
     writers = ([n for n in default_writer_names() if n not in ("exr", "previews")]   # those two: --exr, --previews
-               + [w for w in ("webgl2", "latlong", "sky_visibility") if getattr(args, w, False)]
+               + [w for w in ("webgl2", "latlong", "latlong_hdr", "sky_visibility") if getattr(args, w, False)]
                + ([] if getattr(args, "inverse_distance", None) is False else ["inverse_distance"]))
     quiet = bool(getattr(args, "quiet", False))
     report = BakeProgress("off" if quiet else "auto")

@@ -6,8 +6,11 @@ written as files; the page's URLs are relative, so it works from any folder of a
 
     index.html            the viewer page (map, street view, method switch)
     three.html            the probe set in three.js (web/three_example.js through web/three_probes.js)
+    babylon.html          the probe set in Babylon.js (web/babylon_example.js through web/babylon_probes.js)
     web/                  the pages' ES modules (ktx2.js, runtime.js, three_probes.js, ...)
     three/                three.js r187 (three.module.js, three.core.js; MIT, three.LICENSE)
+    babylon/              Babylon.js (babylon.js; Apache-2.0, its license and notice), copied from
+                          an npm install (:mod:`envcap.viewer.babylon_build`; envcap does not ship it)
     api/config.json       streets with their runtime uniforms (EnvcapStreet), methods, sun, lobe powers
     api/runtime.glsl      the runtime GLSL, WebGL2 target (GLSL ES 3.00, includes resolved)
     set/                  the probe set: manifest.json, probes.ktx2, sky.ktx2, probes_atlas.ktx2
@@ -35,11 +38,12 @@ from pathlib import Path
 from envcap.formats.webgl2_writer import write_probe_atlas
 from envcap.probeset.manifest import Files, write_manifest
 from envcap.probeset.store import read_probe_set
+from envcap.viewer.babylon_build import INSTALL_COMMAND, find_babylon, missing_note
 from envcap.viewer.city_site import CitySite
 from envcap.viewer.site import ViewerSite
 from envcap.viewer.site_dir import open_site
 
-SUMMARY = "a static site for WebGL2 / three.js: probe files, street uniforms (JSON), runtime GLSL, example pages"
+SUMMARY = "a static site for WebGL2 / three.js / Babylon.js: probe files, street uniforms (JSON), runtime GLSL, example pages"
 KIND = "web-export"
 WEB_FILES = ("probes", "sky", "probes_atlas", "scene_gltf")
 """The manifest ``files`` entries a web export keeps."""
@@ -50,12 +54,15 @@ A probe set as a static site: serve this folder with any static file server, e.g
 
     python3 -m http.server 8000
 
-and open http://localhost:8000/ (the viewer) or http://localhost:8000/three.html (three.js).
+and open http://localhost:8000/ (the viewer), http://localhost:8000/three.html (three.js) or
+http://localhost:8000/babylon.html (Babylon.js).
 Browsers do not run ES modules from file:// URLs, so a server is needed, but no envcap process.
 
-* `index.html`, `three.html`, `web/`: the pages (`web/three_probes.js` loads the probe set into
-  three.js; `web/three_example.js` is the example using it);
+* `index.html`, `three.html`, `babylon.html`, `web/`: the pages (`web/three_probes.js` and
+  `web/babylon_probes.js` load the probe set into three.js and Babylon.js;
+  `web/three_example.js` and `web/babylon_example.js` are the examples using them);
 * `three/`: three.js r187 (MIT, `three/three.LICENSE`);
+* `babylon/`: {babylon};
 * `api/config.json`: the streets and their runtime uniforms (`streets[i].uniforms.nominal`, the
   `EnvcapStreet` struct), the methods, the sun, the lobe powers;
 * `api/runtime.glsl`: the runtime GLSL for WebGL2 (GLSL ES 3.00);
@@ -107,7 +114,12 @@ def write_web_site(source: Path, out: Path, report: Path | None) -> str:
             path.write_bytes(body if isinstance(body, bytes) else body())
     what = (f"a city of {len(site.index.streets)} streets in {len(sets)} shards" if isinstance(site, CitySite)
             else f"{site.manifest.layer_count} probes, {site.manifest.resolution}^2 faces")
+    babylon = find_babylon()
     (out / "README.md").write_text(README.format(
-        what=what, report="; `report/`: its evaluation report" if site.report_dir else ""))
+        what=what, report="; `report/`: its evaluation report" if site.report_dir else "",
+        babylon=(f"Babylon.js {babylon.version} (Apache-2.0, `babylon/babylon.LICENSE.md`)" if babylon else
+                 f"missing: envcap does not ship Babylon.js; run  {INSTALL_COMMAND}  (or set ENVCAP_BABYLON to a "
+                 "folder holding babylon.js) and export again")))
     return ("serve it with any static server, e.g.  python3 -m http.server 8000 --directory {out}\n"
-            "and open http://localhost:8000/ (the viewer) or http://localhost:8000/three.html (three.js)")
+            "and open http://localhost:8000/ (the viewer), http://localhost:8000/three.html (three.js) or\n"
+            "http://localhost:8000/babylon.html (Babylon.js)" + ("" if babylon else "\nnote: " + missing_note()))

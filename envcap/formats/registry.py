@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from envcap.formats import (exr_writer, inverse_distance_writer, ktx2_writer, latlong_writer, preview_writer,
-                            sky_visibility_writer, webgl2_writer)
+from envcap.formats import (exr_writer, inverse_distance_writer, ktx2_writer, latlong_hdr_writer, latlong_writer,
+                            preview_writer, sky_visibility_writer, webgl2_writer)
 from envcap.formats.writer import ProbeSetWriter
 
 WRITERS: dict[str, ProbeSetWriter] = {}
@@ -52,5 +52,6 @@ register_writer(exr_writer.WRITER)
 register_writer(preview_writer.WRITER)
 register_writer(webgl2_writer.WRITER)
 register_writer(latlong_writer.WRITER)
+register_writer(latlong_hdr_writer.WRITER)
 register_writer(sky_visibility_writer.WRITER)
 register_writer(inverse_distance_writer.WRITER)

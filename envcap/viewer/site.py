@@ -49,10 +49,12 @@ from envcap.runtime import methods as runtime_methods
 from envcap.runtime.limits import MAX_PROBES
 from envcap.runtime.shader_targets import prologue
 from envcap.runtime.street import StreetProbes, StreetUniforms
+from envcap.viewer.babylon_build import find_babylon
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
-"""The page's static files (``index.html``, ``three.html`` and their ES modules; ``three/``: the
-three.js r187 build, MIT), shipped with the package."""
+"""The page's static files (``index.html``, ``three.html``, ``babylon.html`` and their ES modules;
+``three/``: the three.js r187 build, MIT), shipped with the package (Babylon.js is not:
+:mod:`envcap.viewer.babylon_build`)."""
 
 Body = Union[Path, bytes, Callable[[], bytes]]
 """What a route serves: a file, bytes, or a function making the bytes when asked."""
@@ -133,11 +135,17 @@ def report_files(report_dir: Path | None) -> dict[str, Path]:
 
 
 def page_routes() -> Routes:
-    """The page's own files: ``/`` (the viewer, ``index.html``), ``/three.html`` (the probe set in
-    three.js), ``/web/NAME`` (their modules and CSS) and ``/three/NAME`` (the three.js build)."""
-    out: Routes = {"/": WEB_DIR / "index.html", "/three.html": WEB_DIR / "three.html"}
+    """The page's own files: ``/`` (the viewer, ``index.html``), ``/three.html`` and
+    ``/babylon.html`` (the probe set in three.js and in Babylon.js), ``/web/NAME`` (their modules
+    and CSS), ``/three/NAME`` (the three.js build) and ``/babylon/NAME`` (the Babylon.js build and
+    its license, where one is installed: :func:`envcap.viewer.babylon_build.find_babylon`)."""
+    out: Routes = {"/": WEB_DIR / "index.html", "/three.html": WEB_DIR / "three.html",
+                   "/babylon.html": WEB_DIR / "babylon.html"}
     out.update({f"/web/{p.name}": p for p in sorted(WEB_DIR.iterdir()) if p.is_file() and p.suffix != ".html"})
     out.update({f"/three/{p.name}": p for p in sorted((WEB_DIR / "three").iterdir()) if p.is_file()})
+    babylon = find_babylon()
+    if babylon is not None:
+        out.update({f"/babylon/{name}": path for name, path in babylon.files.items()})
     return out
 
 

@@ -1,9 +1,9 @@
 """An engine developer's path to the web, typed as a user types it: bake a probe set (without the
 WebGL2 atlas), ``envcap export web`` it, serve the site with ``python3 -m http.server`` (no envcap
-process) and open the three.js example page in a browser.  The page's pixels are checked against
-the numpy twin: the background (the street as the probes see it from the camera, the sky above)
-pixel for pixel through the page's tone map, a mirrored lookup is far off (orientation), the sky
-is not black, and the diffuse spheres have the runtime's colors."""
+process) and open each engine's example page (three.js, Babylon.js) in a browser.  The page's
+pixels are checked against the numpy twin: the background (the street as the probes see it from
+the camera, the sky above) pixel for pixel through the page's tone map, a mirrored lookup is far
+off (orientation), the sky is not black, and the diffuse spheres have the runtime's colors."""
 
 import base64
 import io
@@ -17,6 +17,7 @@ from envcap.probeset.store import read_probe_set
 from envcap.runtime.chains import ProbeChains
 from envcap.runtime.sampling import sample_street
 from envcap.runtime.street import RuntimeStreet
+from envcap.viewer.babylon_build import find_babylon
 
 pytestmark = pytest.mark.slow   # a bake, an export, a server and a page: ~15 s on 2 idle cores
 CAPTION_ROWS = 30               # the page's caption sits over the bottom rows
@@ -51,7 +52,14 @@ def sphere_hits(view, d):
     return idx, o + best[:, None] * d
 
 
-def test_bake_export_serve_three_page(terminal, chromium):
+PAGES = {"three": "three.js r187", "babylon": "Babylon.js 9."}
+"""Each engine's example page and what its caption names."""
+
+
+@pytest.mark.parametrize("engine", sorted(PAGES))
+def test_bake_export_serve_engine_page(terminal, chromium, engine):
+    if engine == "babylon" and find_babylon() is None:
+        pytest.skip("no Babylon.js build installed (.ci/run installs it: envcap.viewer.babylon_build.INSTALL_COMMAND)")
     terminal.run("envcap capture canyon --out probes --resolution 8 --spacing 100 --quiet")
     assert not (terminal.cwd / "probes" / "probes_atlas.ktx2").exists()   # the export makes it
     out = terminal.run("envcap export web probes --out site").stdout
@@ -62,7 +70,7 @@ def test_bake_export_serve_three_page(terminal, chromium):
         assert "port" in line, line
         url = f"http://127.0.0.1:{int(line.split('port ')[1].split()[0])}/"
         chromium.errors.clear()
-        chromium.goto(url + "three.html")
+        chromium.goto(url + f"{engine}.html")
         assert chromium.evaluate("window.example.ready.then(() => 'ok', e => 'error: ' + e.message)") == "ok", \
             chromium.errors
         assert chromium.errors == []
@@ -75,7 +83,7 @@ def test_bake_export_serve_three_page(terminal, chromium):
         server.wait(10)
         chromium.goto("about:blank")
     assert shot.shape[:2] == (view["height"], view["width"]), (shot.shape, view)
-    assert "three.js r187" in caption and "sky RGBA32F" in caption, caption
+    assert PAGES[engine] in caption and "sky RGBA32F" in caption, caption
 
     ps = read_probe_set(terminal.cwd / "probes", distance=False)
     street = ps.manifest.streets[0]
@@ -131,4 +139,4 @@ def test_bake_export_serve_three_page(terminal, chromium):
             want = tonemap(albedo * lookup(p, n[None], 1.0)[0], view["exposure"])
             assert np.abs(shot[pr, pc] - want).max() <= 4, (s["name"], shot[pr, pc], want)
             report[s["name"]] = round(float(np.abs(shot[pr, pc] - want).max()), 2)
-    print(json.dumps(report))
+    print(engine, json.dumps(report))

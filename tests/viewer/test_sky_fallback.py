@@ -4,7 +4,7 @@ to hide the extension from the pages (``getExtension`` returns null for it and
 show the sky:
 
 * a sky that fits half floats (no sun in the map): three.js (``three_probes.js``), the raw WebGL2
-  page and the three.js example page load it as RGBA16F, linear; its lookups and the example's
+  page and the three.js and Babylon.js example pages load it as RGBA16F, linear; its lookups and the example's
   pixels are not black and equal the normal path's (within half-float rounding).  Control: the
   same three.js page told that floats filter (RGBA32F, linear: what it did before) reads a black
   sky, so the hiding is real;
@@ -25,6 +25,7 @@ from viewer_pages import open_page
 
 from envcap.probeset.store import read_probe_set, write_probe_set
 from envcap.viewer import ViewerSite, serve
+from envcap.viewer.babylon_build import find_babylon
 
 HERE = Path(__file__).resolve().parent
 HALF_MAX = 65504.0
@@ -130,12 +131,15 @@ def screenshot(b):
     return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"), np.int32)
 
 
-def test_three_example_page_sky_pixels_match(chromium, viewer_server):
-    open_page(chromium, viewer_server.url + "three.html", "window.example.ready")
+@pytest.mark.parametrize("page", ["three.html", pytest.param("babylon.html", marks=pytest.mark.slow)])  # ~10 s
+def test_example_page_sky_pixels_match(chromium, viewer_server, page):
+    if page == "babylon.html" and find_babylon() is None:
+        pytest.skip("no Babylon.js build installed (.ci/run installs it: envcap.viewer.babylon_build.INSTALL_COMMAND)")
+    open_page(chromium, viewer_server.url + page, "window.example.ready")
     assert chromium.evaluate("window.example.view().skyPlan.format") == "rgba32f"
     normal = screenshot(chromium)
     with extension_hidden(chromium):
-        open_page(chromium, viewer_server.url + "three.html", "window.example.ready")
+        open_page(chromium, viewer_server.url + page, "window.example.ready")
         assert chromium.evaluate("window.example.view().skyPlan.format") == "rgba16f"
         hidden = screenshot(chromium)
         assert chromium.errors == []
