@@ -134,8 +134,9 @@ def report_files(report_dir: Path | None) -> dict[str, Path]:
 
 def page_routes() -> Routes:
     """The page's own files: ``/`` (the viewer, ``index.html``), ``/three.html`` (the probe set in
-    three.js), ``/web/NAME`` (their modules and CSS) and ``/three/NAME`` (the three.js build)."""
-    out: Routes = {"/": WEB_DIR / "index.html", "/three.html": WEB_DIR / "three.html"}
+    three.js), ``/three_webgpu.html`` (the same on WebGPU, WGSL), ``/web/NAME`` (their modules and CSS) and ``/three/NAME`` (the three.js build)."""
+    out: Routes = {"/": WEB_DIR / "index.html", "/three.html": WEB_DIR / "three.html",
+                   "/three_webgpu.html": WEB_DIR / "three_webgpu.html"}
     out.update({f"/web/{p.name}": p for p in sorted(WEB_DIR.iterdir()) if p.is_file() and p.suffix != ".html"})
     out.update({f"/three/{p.name}": p for p in sorted((WEB_DIR / "three").iterdir()) if p.is_file()})
     return out
@@ -295,11 +296,12 @@ class ViewerSite:
         return out
 
     def files(self) -> dict[str, str]:
-        """The page's URLs of the face atlas, the sky and (when on disk) ``scene.glb``."""
+        """The page's URLs of the face atlas (WebGL2), the cube-map array (``probes``: WebGPU), the
+        sky and (when on disk) ``scene.glb``."""
         m = self.manifest
         gltf = m.files.extra.get("scene_gltf")   # the bake's scene.glb, if written
         return {"manifest": self.prefix + "manifest.json", "atlas": self.prefix + self.atlas_name,
-                "sky": self.prefix + str(m.files.sky),
+                "probes": self.prefix + str(m.files.probes), "sky": self.prefix + str(m.files.sky),
                 **({"scene": self.prefix + gltf} if isinstance(gltf, str) and self.set_file(gltf).is_file() else {})}
 
     def streets(self) -> list[dict[str, Any]]:
