@@ -19,6 +19,7 @@ from envcap.viewer import ViewerSite, serve
 from envcap.viewer.browser import find_chromium
 from envcap.viewer.webgpu_page import WGSL_PATH
 
+pytestmark = pytest.mark.slow   # a Chromium with WebGPU, a page, a screenshot: ~10 s on 2 cores
 CAPTION_ROWS = 40
 
 
