@@ -1,8 +1,8 @@
 """The runtime library in WGSL (WebGPU): the Vulkan GLSL of ``shaders/runtime/`` translated by Slang.
 
 WGSL is not written by hand: every WGSL shader is the translation of the same GLSL the other
-targets compile (:mod:`envcap.runtime.shader_targets`, target ``vulkan``: the library behind the
-Vulkan prologue, street and spheres in std430 storage buffers), so there is one source of truth.
+targets compile (:mod:`envcap.runtime.shader_targets`: the library behind the Vulkan prologue,
+street and spheres in std430 storage buffers; :data:`WGSL_TARGET`), so there is one source of truth.
 The translator is Slang (Khronos / NVIDIA, Apache-2.0 with LLVM exception), from PyPI's
 ``slangpy`` wheel: its compiler library ``libslang-compiler`` reads GLSL and writes WGSL
 (``-target wgsl``).  The wheel carries the library, not the ``slangc`` executable, so
@@ -14,10 +14,12 @@ WGSL has no combined texture-samplers: Slang turns a GLSL ``sampler*`` at bindin
 GLSL bindings), so :data:`WGSL_TARGET` is the Vulkan prologue with ``ENVCAP_BINDING(n)`` at
 ``16 + 2 n``: the runtime's texture unit ``n`` is texture binding ``16 + 2 n`` and sampler
 ``17 + 2 n`` (:func:`texture_binding`); the street and sphere blocks stay at 8 and 9.
-``-ignore-capabilities``: Slang's GLSL intrinsics (``atan(y, x)``, ``textureLod``,
-``textureSize``) carry no WGSL capability although its WGSL emitter writes them (``atan2``,
-``textureSampleLevel``, ``textureDimensions``); the output is validated by naga (wgpu) and
-checked against the numpy twin instead (``tests/runtime/test_wgsl_runtime.py``).  naga (wgpu's translator)
+``-ignore-capabilities``: Slang's GLSL intrinsics (``atan(y, x)``, ``textureLod``, ...) carry no
+WGSL capability although its WGSL emitter writes them (``atan2``, ``textureSampleLevel``);
+``textureSize`` / ``texelFetch`` on combined samplers come out wrong, so :data:`SLANG_SHIM` writes
+them as WGSL intrinsics; a matrix in a uniform block comes out transposed (the runtime has none;
+do not pass one).  The output is validated by naga (wgpu) and checked against the numpy twin
+(``tests/runtime/test_wgsl_runtime.py``).  naga (wgpu's translator)
 reads GLSL too, but ships as a Rust crate and the ``naga-cli`` cargo tool, not on PyPI; PyPI's
 ``wgpu`` embeds naga yet gives no WGSL text back; Chromium's ``tint`` is not packaged.
 

@@ -19,7 +19,6 @@ from envcap.viewer import ViewerSite, serve
 from envcap.viewer.browser import find_chromium
 from envcap.viewer.webgpu_page import WGSL_PATH
 
-pytestmark = pytest.mark.slow   # a Chromium with WebGPU, a page, a screenshot: ~10 s on 2 cores
 CAPTION_ROWS = 40
 
 
@@ -79,6 +78,7 @@ def test_shipped_page_wgsl_is_a_fresh_translation():
     assert WGSL_PATH.read_text() == page_wgsl(), "stale: python3 -m envcap.viewer.webgpu_page"
 
 
+@pytest.mark.slow   # a Chromium with WebGPU, a page, a screenshot: ~10 s on 2 cores
 def test_webgpu_page_matches_the_twin(webgpu_page, viewer_probe_dir):
     view, shot, caption, errors = webgpu_page
     assert errors == []
