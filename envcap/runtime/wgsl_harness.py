@@ -63,12 +63,10 @@ def std430(members: Sequence[tuple[str, int, Any]]) -> bytes:
     out = bytearray()
     for ty, length, value in members:
         size, align, dt = _STD430[ty]
-        stride = align if length > 1 and ty == "vec3" else max(size, align) if length > 1 else size
-        comps = size // 4
+        pad = (16 - size) if length > 1 and ty == "vec3" else 0     # array elements: vec3 strides 16
         out += bytes(-len(out) % align)
-        v = np.asarray(value, dtype=dt).reshape(length, comps) if length > 1 or comps > 1 else np.asarray([value], dt)
-        for row in np.atleast_2d(v.reshape(length, comps)):
-            out += row.astype(dt).tobytes() + bytes(stride - size if length > 1 else 0)
+        for row in np.asarray(value, dtype=dt).reshape(length, size // 4):
+            out += row.tobytes() + bytes(pad)
     out += bytes(-len(out) % 16)
     return bytes(out)
 

@@ -219,3 +219,16 @@ def test_street_map_matches_twin():
     want = m.lookup(f32(p[:, 0]), f32(p[:, 1]))
     assert len(np.unique(want)) == 4
     np.testing.assert_array_equal(got, want)
+
+
+def test_std430_packs_as_derived_by_hand():
+    """float[3] at 0, vec4[2] at 16, int at 48, vec3[2] at 64 (stride 16), vec2 at 96, size 112."""
+    b = std430([("float", 3, [1, 2, 3]), ("vec4", 2, np.arange(8).reshape(2, 4)), ("int", 1, 7),
+                ("vec3", 2, [[4, 5, 6], [7, 8, 9]]), ("vec2", 1, (10, 11))])
+    f, i = np.frombuffer(b, "<f4"), np.frombuffer(b, "<i4")
+    assert len(b) == 112
+    np.testing.assert_array_equal(f[:3], [1, 2, 3])
+    np.testing.assert_array_equal(f[4:12], np.arange(8))
+    assert i[12] == 7
+    np.testing.assert_array_equal(f[16:24], [4, 5, 6, 0, 7, 8, 9, 0])
+    np.testing.assert_array_equal(f[24:26], [10, 11])
