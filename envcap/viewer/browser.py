@@ -31,6 +31,10 @@ FLAGS = ("--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-
          "--disable-background-networking", "--disable-sync", "--mute-audio", "--hide-scrollbars",
          "--remote-allow-origins=*")
 """Command-line flags of every start (``--no-sandbox``: CI runs as root, where Chromium's sandbox refuses)."""
+WEBGPU_FLAGS = ("--enable-unsafe-webgpu", "--enable-features=Vulkan", "--use-vulkan=swiftshader",
+                "--use-webgpu-adapter=swiftshader")
+"""Flags added by ``Chromium(webgpu=True)``: WebGPU on SwiftShader's CPU Vulkan (without
+``--use-vulkan=swiftshader`` the adapter is found but ``requestDevice`` fails headless)."""
 
 
 def find_chromium() -> str | None:
@@ -49,12 +53,12 @@ class BrowserError(RuntimeError):
 class Chromium:
     """One headless Chromium with one page, driven over CDP.
 
-    ``width`` x ``height``: the window (CSS px).  Use as a context manager or call :meth:`close`.
+    ``width`` x ``height``: the window (CSS px); ``webgpu``: start with :data:`WEBGPU_FLAGS`.  Use as a context manager or call :meth:`close`.
     ``errors``: console errors / warnings-as-errors, uncaught exceptions and failed network
     loads seen so far (strings); ``console``: every console message ``(level, text)``."""
 
     def __init__(self, width: int = 800, height: int = 600, executable: str | None = None,
-                 timeout: float = 20.0) -> None:
+                 timeout: float = 20.0, webgpu: bool = False) -> None:
         import websocket  # websocket-client; imported here: serving pages needs no driver
 
         exe = executable or find_chromium()
@@ -65,7 +69,7 @@ class Chromium:
         self.console: list[tuple[str, str]] = []
         self._profile = tempfile.TemporaryDirectory(prefix="envcap-chromium-")
         self._proc = subprocess.Popen(
-            [exe, *FLAGS, f"--window-size={width},{height}", "--remote-debugging-port=0",
+            [exe, *FLAGS, *(WEBGPU_FLAGS if webgpu else ()), f"--window-size={width},{height}", "--remote-debugging-port=0",
              f"--user-data-dir={self._profile.name}", "about:blank"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
             start_new_session=True)   # its own process group: close() stops its helper processes too

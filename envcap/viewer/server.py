@@ -3,7 +3,7 @@ that is untrusted input and for a browser whose other tabs are not.
 
 Routes (GET / HEAD): the site's :meth:`~envcap.viewer.site.ViewerSite.routes` (a city's:
 :meth:`~envcap.viewer.city_site.CitySite.routes`), the list ``envcap export web`` writes too:
-``/`` -> ``web/index.html``; ``/three.html``; ``/web/NAME`` and ``/three/NAME`` -> the page's static
+``/`` -> ``web/index.html``; ``/three.html``; ``/three_webgpu.html``; ``/web/NAME`` and ``/three/NAME`` -> the page's static
 files (:data:`envcap.viewer.site.WEB_DIR`); ``/set/NAME`` -> the files the probe set's manifest
 names (``manifest.json``, ``probes_atlas.ktx2``, ``sky.ktx2``, ...); ``/report/NAME`` -> the
 report's ``report.json`` and PNG plots; ``/api/config.json`` and ``/api/runtime.glsl``
@@ -63,7 +63,8 @@ from envcap.viewer.site import Body, ViewerSite
 
 CONTENT_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
                  ".css": "text/css; charset=utf-8", ".json": "application/json", ".png": "image/png",
-                 ".ktx2": "image/ktx2", ".glsl": "text/plain; charset=utf-8", ".exr": "image/x-exr",
+                 ".ktx2": "image/ktx2", ".glsl": "text/plain; charset=utf-8",
+                 ".wgsl": "text/wgsl; charset=utf-8", ".exr": "image/x-exr",
                  ".md": "text/markdown; charset=utf-8", ".glb": "model/gltf-binary"}
 
 TIMEOUT_S = 10.0

@@ -136,10 +136,12 @@ def report_files(report_dir: Path | None) -> dict[str, Path]:
 
 def page_routes() -> Routes:
     """The page's own files: ``/`` (the viewer, ``index.html``), ``/three.html`` and
-    ``/babylon.html`` (the probe set in three.js and in Babylon.js), ``/web/NAME`` (their modules
-    and CSS), ``/three/NAME`` (the three.js build) and ``/babylon/NAME`` (the Babylon.js build and
-    its license, where one is installed: :func:`envcap.viewer.babylon_build.find_babylon`)."""
+    ``/babylon.html`` (the probe set in three.js and in Babylon.js), ``/three_webgpu.html`` (the
+    probe set in three.js on WebGPU, WGSL), ``/web/NAME`` (their modules and CSS), ``/three/NAME``
+    (the three.js build) and ``/babylon/NAME`` (the Babylon.js build and its license, where one is
+    installed: :func:`envcap.viewer.babylon_build.find_babylon`)."""
     out: Routes = {"/": WEB_DIR / "index.html", "/three.html": WEB_DIR / "three.html",
+                   "/three_webgpu.html": WEB_DIR / "three_webgpu.html",
                    "/babylon.html": WEB_DIR / "babylon.html"}
     out.update({f"/web/{p.name}": p for p in sorted(WEB_DIR.iterdir()) if p.is_file() and p.suffix != ".html"})
     out.update({f"/three/{p.name}": p for p in sorted((WEB_DIR / "three").iterdir()) if p.is_file()})
@@ -303,11 +305,12 @@ class ViewerSite:
         return out
 
     def files(self) -> dict[str, str]:
-        """The page's URLs of the face atlas, the sky and (when on disk) ``scene.glb``."""
+        """The page's URLs of the face atlas (WebGL2), the cube-map array (``probes``: WebGPU), the
+        sky and (when on disk) ``scene.glb``."""
         m = self.manifest
         gltf = m.files.extra.get("scene_gltf")   # the bake's scene.glb, if written
         return {"manifest": self.prefix + "manifest.json", "atlas": self.prefix + self.atlas_name,
-                "sky": self.prefix + str(m.files.sky),
+                "probes": self.prefix + str(m.files.probes), "sky": self.prefix + str(m.files.sky),
                 **({"scene": self.prefix + gltf} if isinstance(gltf, str) and self.set_file(gltf).is_file() else {})}
 
     def streets(self) -> list[dict[str, Any]]:

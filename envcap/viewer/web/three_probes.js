@@ -21,7 +21,7 @@
 // sky fits half floats (no sun in the map), else RGBA32F with NEAREST filtering and a console
 // warning.  Pass options.renderer (your WebGLRenderer) so that its extensions decide; without it a
 // throwaway WebGL2 context is asked.  ps.skyPlan says what was chosen.
-import { fetchKTX2, skyFaceData, skyFaces, skyPlan, VK_RGBA16F } from "./ktx2.js";
+import { fetchKTX2, skyFaceData, skyFaces, skyPlan, VK_RGBA16F, VK_RGBA32F } from "./ktx2.js";
 
 // Whether this browser filters RGBA32F textures linearly, asked of a throwaway WebGL2 context.
 function floatLinearHere() {
@@ -83,4 +83,68 @@ export function runtimeChunk(library) {
 // its origin); directions stay world (`frame`, (cos yaw, sin yaw), turns them in the GLSL).
 export function streetUniformValue(u) {
   return { ...u };
+}
+
+// ---- WebGPU (three.js WebGPURenderer) --------------------------------------------------------
+// WebGPU has cube-map arrays: probes.ktx2 goes up as stored, one texture_cube_array with the
+// set's mips (no face atlas), the sky as a texture_cube, both on the renderer's GPUDevice.  three.js
+// r187 has no cube-array texture type (its node materials bind 2D arrays and cubes only), so the
+// runtime's WGSL (web/three_webgpu.wgsl, translated from the runtime GLSL by envcap) draws in its
+// own render pass on that device: see three_webgpu_example.js.
+//
+//   const renderer = new THREE.WebGPURenderer({ canvas });   // import * as THREE from "three/webgpu"
+//   const ps = await loadProbeSetWebGPU(renderer, { probes: "probes.ktx2", sky: "sky.ktx2" });
+//   // bind ps.probes (22), ps.sky (24), ps.sampler (23, 25), streetBlock(uniforms) (8, storage)
+const GPU_FORMATS = { [VK_RGBA16F]: "rgba16float", [VK_RGBA32F]: "rgba32float" };
+
+// A cube (dimension "cube") or cube-map array ("cube-array") view of the KTX2 `ktx`'s first
+// `layers` layers (its levels as stored: layer-major, then faces +X -X +Y -Y +Z -Z, rows).
+function cubeView(device, ktx, layers, dimension, name) {
+  const format = GPU_FORMATS[ktx.vkFormat];
+  if (!format || ktx.faces !== 6) throw new Error(`${name}: expected an RGBA16F or RGBA32F cube map (array)`);
+  if (format === "rgba32float" && !device.features.has("float32-filterable")) {
+    throw new Error(`${name}: RGBA32F needs the WebGPU feature float32-filterable, which this device lacks`);
+  }
+  const tex = device.createTexture({ size: [ktx.width, ktx.height, 6 * layers], format, mipLevelCount: ktx.levels.length,
+                                     usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST });
+  ktx.levels.forEach((lv, k) => {
+    const texelBytes = lv.data.BYTES_PER_ELEMENT * 4;
+    device.queue.writeTexture({ texture: tex, mipLevel: k }, lv.data.subarray(0, lv.width * lv.height * 4 * 6 * layers),
+                              { bytesPerRow: lv.width * texelBytes, rowsPerImage: lv.height }, [lv.width, lv.height, 6 * layers]);
+  });
+  return tex.createView({ dimension });
+}
+
+// The probe set on `renderer`'s device (three.js WebGPURenderer; initialized here).  files.probes:
+// the cube-map array KTX2 (probes.ktx2), files.sky: sky.ktx2 (a rung ladder's layered sky: its
+// layer 0).  Returns { device, probes, sky, sampler, probesKtx, skyKtx }.
+export async function loadProbeSetWebGPU(renderer, files) {
+  await renderer.init();
+  const device = renderer.backend.device;
+  if (!device) throw new Error("loadProbeSetWebGPU: the renderer has no GPUDevice (is it a WebGPURenderer on WebGPU?)");
+  const [p, s] = await Promise.all([fetchKTX2(files.probes), fetchKTX2(files.sky)]);
+  const probes = cubeView(device, p, p.layers, "cube-array", files.probes);
+  const sky = cubeView(device, s, 1, "cube", files.sky);
+  const sampler = device.createSampler({ magFilter: "linear", minFilter: "linear", mipmapFilter: "linear" });
+  return { device, probes, sky, sampler, probesKtx: p, skyKtx: s };
+}
+
+// The street (/api/config.json's uniforms of one street) as the WGSL runtime's storage block
+// (GLSL `EnvcapStreet`, std430: binding 8): float along_s[P]; vec4 pos[P]; vec4 planes[P];
+// int count; int along; float xk[L]; int nlevels; vec2 frame.
+export function streetBlock(u) {
+  const P = u.along_s.length, L = u.xk.length, a16 = (x) => Math.ceil(x / 16) * 16;
+  const oPos = a16(4 * P), oPlanes = oPos + 16 * P, oCount = oPlanes + 16 * P, oXk = oCount + 8;
+  const oN = oXk + 4 * L, oFrame = Math.ceil((oN + 4) / 8) * 8;
+  const buf = new ArrayBuffer(a16(oFrame + 8));
+  const f = new Float32Array(buf), i = new Int32Array(buf);
+  f.set(u.along_s, 0);
+  f.set(u.pos, oPos / 4);
+  f.set(u.planes, oPlanes / 4);
+  i[oCount / 4] = u.count;
+  i[oCount / 4 + 1] = u.along;
+  f.set(u.xk, oXk / 4);
+  i[oN / 4] = u.nlevels;
+  f.set(u.frame, oFrame / 4);
+  return buf;
 }
