@@ -17,7 +17,7 @@ import moderngl
 import numpy as np
 from numpy.typing import NDArray
 
-from envcap.core.resources import shader_source
+from envcap.core.resources import expand_includes, shader_source
 from envcap.core.street_frame import plan_rotation
 from envcap.crowd.camera import Camera
 from envcap.crowd.inputs import ALBEDO, CrowdAvatar
@@ -45,10 +45,9 @@ def crowd_sources(method_glsl: str, target: str = "gl450", targets: bool = False
     head = prologue(target)
     defs = f"#define CROWD_SAMPLE {method_glsl}\n#define CROWD_NEIGHBOURS {NEIGHBOURS}\n" \
            f"#define ENVCAP_MAX_SPHERES {MAX_SPHERES}\n" + ("#define CROWD_TARGETS\n" if targets else "")
-    vert = head + shader_source("crowd/crowd_vert.glsl")
+    vert = head + "#include \"crowd/crowd_vert.glsl\"\n"
     frag = head + defs + "#include \"crowd/crowd_frag.glsl\"\n"
-    from envcap.core.resources import expand_includes
-    return vert, expand_includes(frag)
+    return expand_includes(vert), expand_includes(frag)
 
 
 @dataclass(frozen=True)
