@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pygltflib
 from numpy.typing import NDArray
 
 from envcap.core.resources import city_scenes_dir
@@ -55,14 +56,19 @@ class CrowdAvatar:
     path: Path
 
 
-def default_avatar() -> CrowdAvatar:
-    """The bundled walker with its proxy spheres and blockers computed here (``envcap avatar``'s
-    defaults, in memory: nothing is written)."""
-    path = city_scenes_dir() / DEFAULT_AVATAR
-    avatar, spheres, blockers = annotate(read_gltf(path), name=str(path))
+def annotated_avatar(gltf: pygltflib.GLTF2, path: Path) -> CrowdAvatar:
+    """A skinned glTF in memory with its proxy spheres and blockers computed here (``envcap
+    avatar``'s defaults; nothing is written); ``path`` names it."""
+    avatar, spheres, blockers = annotate(gltf, name=str(path))
     pad = 4 - blockers.joints.shape[1]
     return CrowdAvatar(avatar, spheres, np.pad(blockers.joints, ((0, 0), (0, pad))).astype(np.float32),
                        np.pad(blockers.scores, ((0, 0), (0, pad))).astype(np.float32), path)
+
+
+def default_avatar() -> CrowdAvatar:
+    """The bundled walker, annotated in memory (:func:`annotated_avatar`)."""
+    path = city_scenes_dir() / DEFAULT_AVATAR
+    return annotated_avatar(read_gltf(path), path)
 
 
 def read_avatar(path: str | Path) -> CrowdAvatar:

@@ -151,6 +151,17 @@ class CrowdRenderer:
         """Draw ``pose`` from ``camera``; ``{"color": (H, W, 3) linear HDR, row 0 at the top}``,
         plus the other :data:`TARGETS` ``(H, W, 4)`` with ``targets``.  ``constant``: the unlit
         crowd (same geometry and skinning, a constant colour; the bench's reference)."""
+        self.draw(pose, camera, terms, constant)
+        w, h = self.size
+        out = {}
+        for name, rb in zip(TARGETS, self.colors):
+            img = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=TARGETS.index(name)),
+                                np.float32).reshape(h, w, 4)[::-1]
+            out[name] = img[..., :3].copy() if name == "color" else img.copy()
+        return out
+
+    def draw(self, pose: CrowdPose, camera: Camera, terms: str = "neighbours", constant: bool = False) -> None:
+        """Upload ``pose``'s textures and draw the frame (no read-back; :meth:`render`)."""
         ctx, n = self.ctx, len(pose.roots)
         self.fbo.use()
         ctx.enable(moderngl.DEPTH_TEST)
@@ -176,13 +187,6 @@ class CrowdRenderer:
                       "probes": 3, "sky": 4}
             set_uniforms(self.prog, values, sources=self.sources)
             self.avatar_vao.render(instances=n)
-        w, h = self.size
-        out = {}
-        for name, rb in zip(TARGETS, self.colors):
-            img = np.frombuffer(self.fbo.read(components=4, dtype="f4", attachment=TARGETS.index(name)),
-                                np.float32).reshape(h, w, 4)[::-1]
-            out[name] = img[..., :3].copy() if name == "color" else img.copy()
-        return out
 
     def release(self) -> None:
         """Free every GL object (the context is the caller's)."""

@@ -57,17 +57,20 @@ class CrowdJob:
     estimate: int
 
     @staticmethod
-    def prepare(scene: str, probes: str | Path, count: int, *, avatar: str | None = None, seed: int = 0,
+    def prepare(scene: str, probes: str | Path | ProbeSet, count: int, *, avatar: str | CrowdAvatar | None = None,
+                seed: int = 0,
                 frames: int = 1, fps: float = 10.0, size: tuple[int, int] = (640, 400), terms: str = "neighbours",
                 street: str | None = None, method: str | None = None, scene_obj: Scene | None = None) -> "CrowdJob":
         """Read the probe set, the avatar and the scene (``scene_obj`` instead of loading
-        ``scene``), place ``count`` walkers; ``ValueError`` / ``FileNotFoundError`` naming the
+        ``scene``; a :class:`ProbeSet` or :class:`CrowdAvatar` in memory is taken as is), place
+        ``count`` walkers; ``ValueError`` / ``FileNotFoundError`` naming the
         problem (before any output exists)."""
         if count < 0:
             raise ValueError(f"--avatars must be >= 0, got {count}")
         m = crowd_method(method or DEFAULT_METHOD)
-        ps = read_probes(probes)
-        av = default_avatar() if avatar is None else read_avatar(avatar)
+        ps = probes if isinstance(probes, ProbeSet) else read_probes(probes)
+        av = (avatar if isinstance(avatar, CrowdAvatar) else
+              default_avatar() if avatar is None else read_avatar(avatar))
         sc = scene_obj if scene_obj is not None else load_scene(scene)
         st = pick_street(ps, street)
         ground = GroundHeights(sc.mesh) if len(sc.mesh.indices) else None
