@@ -4,8 +4,9 @@ instanced draw of ``shaders/crowd/`` (GPU skinning, the runtime lookup, the dyna
 :class:`CrowdRenderer` holds the GL objects of one run (context, probe and sky textures, the
 street and avatar buffers, the programs); :meth:`CrowdRenderer.render` draws one pose of the crowd
 and returns the linear HDR frame (and, with ``targets=True``, the float targets the tests compare
-with the numpy twin).  The street is shaded ``albedo * (sky_mean + E_sun max(n.l, 0) / pi) +
-emission`` (no shadows: the street is the backdrop; the avatars are what the runtime lights).
+with the numpy twin).  The sky map is drawn behind everything; the street is shaded ``albedo * (sky_mean + E_sun
+max(n.l, 0) / pi) + emission`` (no shadows: the street is the backdrop; the avatars are what the
+runtime lights).
 """
 
 from __future__ import annotations
@@ -118,6 +119,9 @@ class CrowdRenderer:
             self.street_vao = self._keep(ctx.vertex_array(self.street_prog, [(self.street_vbo, "3f 3f 3f 3f", "in_position",
                                          "in_normal", "in_albedo", "in_emission")], self.street_ibo))
             self.street_triangles = len(mesh.indices)
+        self.sky_prog = self._keep(ctx.program(vertex_shader=prologue("gl450") + shader_source("crowd/sky_vert.glsl"),
+                                               fragment_shader=prologue("gl450") + shader_source("crowd/sky_frag.glsl")))
+        self.sky_vao = self._keep(ctx.vertex_array(self.sky_prog, []))
         w, h = size
         count = len(TARGETS) if targets else 1
         self.colors = [self._keep(ctx.renderbuffer((w, h), 4, dtype="f4")) for _ in range(count)]
@@ -167,6 +171,12 @@ class CrowdRenderer:
         ctx.enable(moderngl.DEPTH_TEST)
         self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         vp = camera.view_proj().astype(np.float32)
+        if not self.targets:
+            ctx.disable(moderngl.DEPTH_TEST)
+            self.sky.use(4)
+            set_uniforms(self.sky_prog, {"crowd_inverse_view_proj": np.linalg.inv(camera.view_proj()).T, "sky": 4})
+            self.sky_vao.render(vertices=3)
+            ctx.enable(moderngl.DEPTH_TEST)
         if self.street_vao is not None and not self.targets:
             set_uniforms(self.street_prog, {"crowd_view_proj": vp.T, "crowd_sky_mean": self.sky_mean,
                                             "crowd_sun_dir": self.sun.direction, "crowd_sun_e": self.sun.irradiance})

@@ -64,8 +64,13 @@ void main()
     float ln = length(n);
     v_position = p.xyz;
     v_normal = ln > 0.0 ? n / ln : vec3(0.0, 1.0, 0.0);
-    v_self0 = crowd_bone_sphere(walker, int(in_blockers.x), in_blocker_weights.x, p.xyz);
-    v_self1 = crowd_bone_sphere(walker, int(in_blockers.y), in_blocker_weights.y, p.xyz);
+    // the two slots in joint order, not score order: where two bones' scores cross between
+    // neighbouring vertices their spheres stay in their slots (no sphere interpolated between them)
+    bool swap_ = in_blockers.y < in_blockers.x && in_blocker_weights.y > 0.0;
+    vec2 js = swap_ ? in_blockers.yx : in_blockers.xy;
+    vec2 ws = swap_ ? in_blocker_weights.yx : in_blocker_weights.xy;
+    v_self0 = crowd_bone_sphere(walker, int(js.x), ws.x, p.xyz);
+    v_self1 = crowd_bone_sphere(walker, int(js.y), ws.y, p.xyz);
     v_walker = walker;
     gl_Position = crowd_view_proj * vec4(p.xyz, 1.0);
 }
