@@ -42,12 +42,16 @@ def nearest_neighbours(one: NDArray[np.float64], k: int = NEIGHBOURS) -> NDArray
     out = np.full((n, k), -1, np.int64)
     if n < 2 or k == 0:
         return out
-    c = one[:, :3]
+    c = one[:, :3] - one[:, :3].mean(axis=0)
+    sq = np.einsum("ij,ij->i", c, c)
+    kk = min(k, n - 1)
     for a in range(0, n, ROW_BLOCK):
-        d = np.linalg.norm(c[a:a + ROW_BLOCK, None, :] - c[None, :, :], axis=2)
+        d = sq[a:a + ROW_BLOCK, None] + sq[None, :] - 2.0 * c[a:a + ROW_BLOCK] @ c.T    # squared distances
         d[np.arange(len(d)), np.arange(a, a + len(d))] = np.inf
-        order = np.argsort(d, axis=1, kind="stable")[:, :min(k, n - 1)]
-        out[a:a + ROW_BLOCK, :order.shape[1]] = order
+        part = np.argpartition(d, kk - 1, axis=1)[:, :kk] if kk < n else np.argsort(d, axis=1)[:, :kk]
+        pd = np.take_along_axis(d, part, axis=1)
+        order = np.lexsort((part, pd), axis=1)                   # by distance, ties by index
+        out[a:a + ROW_BLOCK, :kk] = np.take_along_axis(part, order, axis=1)
     return out
 
 
