@@ -182,8 +182,11 @@ class CrowdRenderer:
                                             "crowd_sun_dir": self.sun.direction, "crowd_sun_e": self.sun.irradiance})
             self.street_vao.render()
         if n:
-            self.instances.write(instance_texture(pose).tobytes())
-            self.neighbours.write(neighbour_texture(pose, nearest_neighbours(pose.one)).tobytes())
+            if n > self.instances.height:
+                raise ValueError(f"{n} walkers, but the renderer was made for {self.instances.height}")
+            self.instances.write(instance_texture(pose).tobytes(), viewport=(0, 0, self.instances.width, n))
+            self.neighbours.write(neighbour_texture(pose, nearest_neighbours(pose.one)).tobytes(),
+                                  viewport=(0, 0, self.neighbours.width, n))
             self.probes.use(3)
             self.sky.use(4)
             self.instances.use(5)
