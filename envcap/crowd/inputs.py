@@ -9,6 +9,7 @@ can call with the probes and sky it binds (:data:`CROWD_METHODS`); the default i
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,8 +66,10 @@ def annotated_avatar(gltf: pygltflib.GLTF2, path: Path) -> CrowdAvatar:
                        np.pad(blockers.scores, ((0, 0), (0, pad))).astype(np.float32), path)
 
 
+@functools.lru_cache(maxsize=1)
 def default_avatar() -> CrowdAvatar:
-    """The bundled walker, annotated in memory (:func:`annotated_avatar`)."""
+    """The bundled walker, annotated in memory (:func:`annotated_avatar`; once per process: it is
+    immutable, do not modify its arrays)."""
     path = city_scenes_dir() / DEFAULT_AVATAR
     return annotated_avatar(read_gltf(path), path)
 

@@ -51,7 +51,20 @@ class AvatarCycle:
 
     @staticmethod
     def of(avatar: SkinnedAvatar, spheres: ProxySpheres, samples: int = SAMPLES, animation: int = 0) -> "AvatarCycle":
-        """Sample ``avatar``'s ``animation`` (its rest pose when it has none) ``samples`` times."""
+        """Sample ``avatar``'s ``animation`` (its rest pose when it has none) ``samples`` times
+        (kept for the last few avatars of the process: the same objects give the same cycle)."""
+        key = (id(avatar), id(spheres), samples, animation)
+        hit = _CYCLES.get(key)
+        if hit is not None and hit[0] is avatar and hit[1] is spheres:
+            return hit[2]
+        cycle = AvatarCycle._sample(avatar, spheres, samples, animation)
+        if len(_CYCLES) >= 4:
+            _CYCLES.pop(next(iter(_CYCLES)))
+        _CYCLES[key] = (avatar, spheres, cycle)
+        return cycle
+
+    @staticmethod
+    def _sample(avatar: SkinnedAvatar, spheres: ProxySpheres, samples: int, animation: int) -> "AvatarCycle":
         if avatar.animations:
             keys = avatar.animations[animation].keyframes
             t0, period = float(keys[0]), float(keys[-1] - keys[0])
@@ -79,6 +92,10 @@ class AvatarCycle:
             return np.zeros(len(walkers), np.int64)
         cycle = walkers.phase + float(time) * walkers.speed / NOMINAL_SPEED / self.period
         return np.mod(np.round(np.mod(cycle, 1.0) * n).astype(np.int64), n)
+
+
+_CYCLES: dict[tuple[int, int, int, int], tuple[SkinnedAvatar, ProxySpheres, AvatarCycle]] = {}
+"""Cycles sampled in this process (holding their avatar and spheres, so an id is never reused)."""
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,17 @@ from envcap.scene.ground_height import GroundHeights
 from envcap.scene.model import Scene
 
 
+SECONDS_PER_PIXEL = 8e-6
+SECONDS_PER_TRIANGLE = 2.5e-6
+"""A frame's time with every term on llvmpipe (2 shared cores), ~ pixels x the first + walker
+triangles x the second: fitted to ``envcap bench crowd`` (docs/crowd.md, "Cost"); a GPU is far faster."""
+
+
+def estimate_seconds(size: tuple[int, int], walkers: int, triangles: int) -> float:
+    """Seconds a frame takes on llvmpipe, roughly (:data:`SECONDS_PER_PIXEL`, :data:`SECONDS_PER_TRIANGLE`)."""
+    return size[0] * size[1] * SECONDS_PER_PIXEL + walkers * triangles * SECONDS_PER_TRIANGLE
+
+
 def estimate_bytes(size: tuple[int, int], walkers: int, joints: int, vertices: int, street_triangles: int,
                    probe_bytes: int, targets: bool = False) -> int:
     """Peak bytes of a run: the probe and sky textures, the frame's float targets and depth, the
@@ -37,8 +48,8 @@ def estimate_bytes(size: tuple[int, int], walkers: int, joints: int, vertices: i
     w, h = size
     frame = w * h * (16 * (len(TARGETS) if targets else 1) + 4) + w * h * 16
     per_walker = (TEXELS_PER_JOINT * joints + 2 * NEIGHBOURS) * 16 * 2 + joints * 16 * 8 * 3
-    return int(probe_bytes + frame + vertices * 88 + street_triangles * 3 * 60 + walkers * per_walker
-               + 8 * walkers * walkers if walkers <= 512 else 8 * 512 * walkers)
+    search = 8 * min(walkers, 512) * walkers            # one block of the neighbour search's distances
+    return int(probe_bytes + frame + vertices * 88 + street_triangles * 3 * 60 + walkers * per_walker + search)
 
 
 @dataclass
@@ -83,8 +94,10 @@ class CrowdJob:
 
     def describe(self) -> str:
         """One line: the crowd, the size, the lookup and the estimate."""
+        secs = estimate_seconds(self.size, len(self.walkers), len(self.avatar.avatar.triangles))
         return (f"{describe(self.walkers)}, {self.size[0]}x{self.size[1]}, {self.frames} frame(s), terms {self.terms}, "
-                f"method {self.method.name}, ~{format_bytes(self.estimate)}")
+                f"method {self.method.name}; estimate: {format_bytes(self.estimate)}, ~{secs:.1g} s a frame on llvmpipe "
+                f"(~{secs * self.frames:.2g} s in all)")
 
     def camera(self, origin: np.ndarray) -> Camera:
         """The camera over the walkers' span (:func:`envcap.crowd.camera.street_camera`)."""

@@ -48,17 +48,25 @@ def test_the_same_seed_gives_the_same_frames_another_seed_another_crowd(canyon_p
     (["--avatars", "2", "--probes", "nowhere"], "nowhere"),
     (["--avatars", "2", "--avatar", str(city_scenes_dir() / "avatars/walker.glb")], "not written by envcap avatar"),
     (["--avatars", "2", "--size", "64by48"], "--size"),
+    (["--avatars", "2", "--method", "depth_refine"], "--method"),
+    (["--avatars", "2", "--frames", "0"], "--frames"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2_writing_nothing(canyon_probe_dir, tmp_path, capsys, args, says):
     out = tmp_path / "out"
-    argv = ["crowd", "canyon", "--probes", str(canyon_probe_dir), "--out", str(out), *args]
-    if "--probes" in args:
-        argv[3] = str(tmp_path / "nowhere")
-        argv = argv[:argv.index("--avatars")] + [a for a in args if a not in ("--probes", "nowhere")]
-    assert main(argv) == 2
+    probes = str(tmp_path / args[args.index("--probes") + 1]) if "--probes" in args else str(canyon_probe_dir)
+    rest = [a for i, a in enumerate(args) if "--probes" not in args[max(i - 1, 0):i + 1]]
+    assert main(["crowd", "canyon", "--probes", probes, "--out", str(out), *rest]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("envcap: error:") and says in err[0], err
     assert not out.exists()
+
+
+def test_a_crowd_past_the_memory_limit_is_refused_before_any_work(canyon_probe_dir, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("ENVCAP_MAX_MEMORY", "1G")          # the scene fits; 8000^2 float frames do not
+    assert _crowd(tmp_path, canyon_probe_dir, tmp_path / "out", "--size", "8000x8000") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "memory limit" in err[0] and "--avatars or --size" in err[0]
+    assert not (tmp_path / "out").exists()
 
 
 def test_walkers_appear_where_they_were_placed(canyon_probe_dir, gl_ctx):

@@ -65,3 +65,16 @@ def test_instance_texture_joint_matrices_skin_like_gltf_skin():
     p_ref = p_ref @ pose.roots[i, :3, :3].T + pose.roots[i, :3, 3]
     assert np.allclose(p, p_ref, atol=1e-4)
     assert np.allclose(tex[i, 4 * j:5 * j], pose.spheres[i], atol=1e-5)
+
+
+def test_the_estimate_grows_with_walkers_and_size_and_a_huge_crowd_is_refused(monkeypatch):
+    from envcap.core.budget import BudgetError, check_bytes
+    from envcap.crowd.run import estimate_bytes
+
+    small = estimate_bytes((64, 48), 10, 11, 982, 1000, 10**6)
+    assert estimate_bytes((64, 48), 1000, 11, 982, 1000, 10**6) > small + 1000 * 11 * 6 * 16
+    assert estimate_bytes((1680, 1050), 10, 11, 982, 1000, 10**6) > small + 1680 * 1050 * 16
+    monkeypatch.setenv("ENVCAP_MAX_MEMORY", "1G")
+    import pytest
+    with pytest.raises(BudgetError):
+        check_bytes("crowd", estimate_bytes((8192, 8192), 10**6, 11, 982, 1000, 10**6), "--avatars")
