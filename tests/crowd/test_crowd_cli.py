@@ -101,3 +101,12 @@ def test_walkers_appear_where_they_were_placed(canyon_probe_dir, gl_ctx):
     finally:
         r.release()
         r0.release()
+
+
+def test_an_avatar_written_by_envcap_avatar_draws_as_the_bundled_default(canyon_probe_dir, tmp_path):
+    glb = tmp_path / "walker_envcap.glb"
+    assert main(["avatar", str(city_scenes_dir() / "avatars/walker.glb"), "--out", str(glb), "--quiet"]) == 0
+    assert _crowd(tmp_path, canyon_probe_dir, tmp_path / "a", "--avatar", str(glb)) == 0
+    assert _crowd(tmp_path, canyon_probe_dir, tmp_path / "b") == 0     # the same walker, annotated in memory
+    assert (tmp_path / "a" / "frame_0000.png").read_bytes() == (tmp_path / "b" / "frame_0000.png").read_bytes()
+    assert json.loads((tmp_path / "a" / "crowd.json").read_text())["avatar"] == str(glb)
