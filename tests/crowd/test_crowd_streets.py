@@ -10,7 +10,10 @@ import pytest
 
 from envcap.core.street_frame import world_to_frame
 from envcap.crowd.camera import Camera
+from envcap.crowd.inputs import ALBEDO, material
 from envcap.crowd.instances import AvatarCycle, pose_crowd
+from envcap.crowd.sphere_buffer import nearest_neighbours
+from envcap.crowd.twin import CrowdTwin
 from envcap.crowd.run import CrowdJob
 from envcap.crowd.walkers import SIDEWALK, place_walkers
 from envcap.probeset.bake import bake_probe_set
@@ -78,5 +81,22 @@ def test_a_crowd_on_a_turned_street_is_drawn_where_it_walks(gl_ctx, tmp_path):
                 assert np.abs(color[rr - 1:rr + 2, c - 1:c + 2] - bare[rr - 1:rr + 2, c - 1:c + 2]).max() > 0
                 seen += 1
         assert seen >= 3
+        # the terms on the turned street equal the twin (the frame rotation into the street's frame)
+        r.release()
+        r = job.renderer(gl_ctx, targets=True)
+        out = r.render(pose, cam)
+        rows, cols = np.nonzero(out["normal"][..., 3] == 1.0)
+        assert len(rows) >= 8
+        twin = CrowdTwin(job.probes, job.walkers.street.runtime_street(job.method.planes), job.method, material(),
+                         r.origin, ALBEDO)
+        nb = nearest_neighbours(pose.one)
+        for i in np.random.default_rng(1).choice(len(rows), size=min(8, len(rows)), replace=False):
+            y, x = rows[i], cols[i]
+            pos = out["position"][y, x]
+            t = twin.terms(pos[:3], out["normal"][y, x, :3], cam.eye, int(round(pos[3])),
+                           np.stack([out["self0"][y, x], out["self1"][y, x]]), pose, nb)
+            scale = np.abs(t.eq3).max()
+            assert np.abs(out["eq3"][y, x, :3] - t.eq3).max() < 2e-3 * scale
+            assert np.abs(out["all_term"][y, x, :3] - t.all_term).max() < 2e-3 * scale
     finally:
         r.release()
