@@ -88,3 +88,29 @@ def fragment_spheres(x: NDArray[np.float64], walker: int, self_spheres: NDArray[
     cs = cs[:max_spheres]
     arr = np.array(cs, np.float64).reshape(-1, 4)
     return SphereBuffer(arr[:, :3], np.maximum(arr[:, 3], 0.0), np.full((len(arr), 3), albedo))
+
+
+def self_spheres(x: NDArray[np.float64], blockers: NDArray, scores: NDArray, spheres: NDArray[np.float64],
+                 heads: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``(V, SELF_SPHERES, 4)`` the spheres the vertex stage passes for skinned vertices ``x``
+    ``(V, 3)`` of one walker (numpy twin of ``crowd_bone_sphere`` in ``shaders/crowd/crowd_vert.glsl``):
+    the two blockers of highest score (``blockers``, ``scores`` ``(V, 4)``), in joint order, each
+    bone sphere (``spheres`` ``(J, 4)`` posed, ``heads`` ``(J, 3)``) slid along its bone from the
+    head ``h`` through the centre ``c`` to ``2c - h`` to the point nearest the vertex; a slid
+    sphere that would hold the vertex keeps its centre; a score <= 0 gives a radius-0 sphere."""
+    j = np.asarray(blockers)[:, :2].astype(np.int64)
+    w = np.asarray(scores, np.float64)[:, :2]
+    swap = (j[:, 1] < j[:, 0]) & (w[:, 1] > 0)
+    j = np.where(swap[:, None], j[:, ::-1], j)
+    w = np.where(swap[:, None], w[:, ::-1], w)
+    out = np.zeros((len(x), SELF_SPHERES, 4))
+    for k in range(SELF_SPHERES):
+        s, h = spheres[j[:, k]], heads[j[:, k]]
+        e = 2.0 * (s[:, :3] - h)
+        ee = np.einsum("ij,ij->i", e, e)
+        u = np.where(ee > 0, np.clip(np.einsum("ij,ij->i", x - h, e) / np.where(ee > 0, ee, 1.0), 0.0, 1.0), 0.5)
+        p = h + u[:, None] * e
+        p = np.where((np.linalg.norm(x - p, axis=1) <= s[:, 3])[:, None], s[:, :3], p)
+        out[:, k] = np.where((w[:, k] > 0)[:, None], np.c_[p, s[:, 3]], 0.0)
+    return out
+

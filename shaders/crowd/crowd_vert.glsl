@@ -2,7 +2,7 @@
 // and the vertex's two most influential blocker bones placed on their bone segments (the paper's
 // dot-product projection).  Common subset of GLSL 4.50 / ES 3.00: a target prologue
 // (envcap.runtime.shader_targets.prologue) goes first.  docs/crowd.md; numpy twin of the
-// skinning: envcap.dynamic.gltf_skin.skin, of the bone placement: envcap.crowd.twin.self_spheres.
+// skinning: envcap.dynamic.gltf_skin.skin (tests/crowd/test_crowd_spheres.py checks the texture).
 //
 // crowd_instances (RGBA32F, row = walker, 6 J texels; envcap.crowd.instances): texels 4j..4j+3
 // the columns of joint matrix j (root included), 4J + j bone sphere j (centre, radius), 5J + j
