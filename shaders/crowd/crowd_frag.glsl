@@ -1,3 +1,5 @@
+#ifndef ENVCAP_CROWD_FRAG_GLSL
+#define ENVCAP_CROWD_FRAG_GLSL
 // envcap crowd, fragment stage: an avatar lit by the street's probes (Eq. 3 of its Lafortune
 // material through the runtime's lookup, the sky composite), minus the light its own blocker bones
 // and its neighbours block, plus what they bounce (envcap_dynamic_terms), plus the analytic sun
@@ -198,3 +200,5 @@ void main()
         L += crowd_sun_e * crowd_brdf(T, B, N, crowd_sun_dir, v) * nl * crowd_sun_visibility(x);
     out_color = vec4(max(L, vec3(0.0)), 1.0);
 }
+
+#endif  // ENVCAP_CROWD_FRAG_GLSL

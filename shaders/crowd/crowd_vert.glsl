@@ -1,3 +1,5 @@
+#ifndef ENVCAP_CROWD_VERT_GLSL
+#define ENVCAP_CROWD_VERT_GLSL
 // envcap crowd, vertex stage: instanced GPU skinning of one avatar mesh, one instance per walker,
 // and the vertex's two most influential blocker bones placed on their bone segments (the paper's
 // dot-product projection).  Common subset of GLSL 4.50 / ES 3.00: a target prologue
@@ -74,3 +76,5 @@ void main()
     v_walker = walker;
     gl_Position = crowd_view_proj * vec4(p.xyz, 1.0);
 }
+
+#endif  // ENVCAP_CROWD_VERT_GLSL

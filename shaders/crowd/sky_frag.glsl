@@ -1,3 +1,5 @@
+#ifndef ENVCAP_CROWD_SKY_FRAG_GLSL
+#define ENVCAP_CROWD_SKY_FRAG_GLSL
 // envcap crowd: the sky map (level 0) along each pixel's view ray, drawn first behind everything.
 ENVCAP_BINDING(4) uniform samplerCube sky;
 uniform mat4 crowd_inverse_view_proj;   // render frame from clip
@@ -11,3 +13,5 @@ void main()
     vec3 d = normalize(b.xyz / b.w - a.xyz / a.w);
     out_color = vec4(textureLod(sky, d, 0.0).rgb, 1.0);
 }
+
+#endif  // ENVCAP_CROWD_SKY_FRAG_GLSL

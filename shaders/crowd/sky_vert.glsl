@@ -1,3 +1,5 @@
+#ifndef ENVCAP_CROWD_SKY_VERT_GLSL
+#define ENVCAP_CROWD_SKY_VERT_GLSL
 // envcap crowd: the sky behind the street (a full-screen triangle; crowd_sky_frag.glsl).
 out vec2 v_ndc;
 
@@ -7,3 +9,5 @@ void main()
     v_ndc = p;
     gl_Position = vec4(p, 1.0, 1.0);
 }
+
+#endif  // ENVCAP_CROWD_SKY_VERT_GLSL

@@ -1,3 +1,5 @@
+#ifndef ENVCAP_CROWD_STREET_FRAG_GLSL
+#define ENVCAP_CROWD_STREET_FRAG_GLSL
 // envcap crowd: the street's shading, albedo * (mean sky radiance + E_sun max(n.l, 0) / pi) + emission.
 uniform vec3 crowd_sky_mean;
 uniform vec3 crowd_sun_dir;
@@ -12,3 +14,5 @@ void main()
     float nl = max(dot(normalize(v_normal), crowd_sun_dir), 0.0);
     out_color = vec4(v_albedo * (crowd_sky_mean + crowd_sun_e * nl / 3.14159265) + v_emission, 1.0);
 }
+
+#endif  // ENVCAP_CROWD_STREET_FRAG_GLSL

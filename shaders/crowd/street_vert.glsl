@@ -1,3 +1,5 @@
+#ifndef ENVCAP_CROWD_STREET_VERT_GLSL
+#define ENVCAP_CROWD_STREET_VERT_GLSL
 // envcap crowd: the street mesh, the backdrop of the crowd (simple shading; docs/crowd.md).
 uniform mat4 crowd_view_proj;
 ENVCAP_IN(0) in vec3 in_position;   // m, relative to the render origin
@@ -15,3 +17,5 @@ void main()
     v_emission = in_emission;
     gl_Position = crowd_view_proj * vec4(in_position, 1.0);
 }
+
+#endif  // ENVCAP_CROWD_STREET_VERT_GLSL
