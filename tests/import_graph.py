@@ -13,7 +13,7 @@ REPO = Path(__file__).resolve().parents[1]
 # The pipeline order of the packages: an arrow from a later package to an earlier one is a
 # normal dependency; the figure draws them in this order.
 PIPELINE = ("core", "gpu", "outputs", "sky", "scene", "capture", "prefilter", "formats", "probeset",
-            "runtime", "city", "dynamic", "evaluate", "placement", "viewer", "export", "benchmarks", "cli")
+            "runtime", "city", "dynamic", "evaluate", "crowd", "placement", "viewer", "export", "benchmarks", "cli")
 
 
 @dataclass

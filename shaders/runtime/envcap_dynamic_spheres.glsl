@@ -37,7 +37,13 @@
 // The sphere buffer: xyz center (m, world), w radius (m; <= 0: empty); albedo rgb in [0, 1].
 // Targets that take no loose uniforms (Vulkan) define ENVCAP_SPHERES_BLOCK, the block's qualifiers
 // and kind (envcap.runtime.shader_targets: a std430 read-only storage buffer); same member names.
-#ifdef ENVCAP_SPHERES_BLOCK
+// ENVCAP_SPHERES_GLOBAL: plain globals the includer fills per shading point before calling
+// envcap_dynamic_terms (shaders/crowd/crowd_frag.glsl gathers each fragment's own spheres).
+#if defined(ENVCAP_SPHERES_GLOBAL)
+vec4 envcap_spheres[ENVCAP_MAX_SPHERES];
+vec3 envcap_sphere_albedo[ENVCAP_MAX_SPHERES];
+int envcap_sphere_count;
+#elif defined(ENVCAP_SPHERES_BLOCK)
 ENVCAP_SPHERES_BLOCK EnvcapSpheresBlock {
     vec4 envcap_spheres[ENVCAP_MAX_SPHERES];
     vec3 envcap_sphere_albedo[ENVCAP_MAX_SPHERES];

@@ -11,7 +11,7 @@ import pytest
 from envcap.core.resources import expand_includes, shader_path, shader_source, shaders_dir
 from envcap.gpu.glsl_harness import run_glsl
 
-STAGES = {"capture", "prefilter", "runtime", "preview"}
+STAGES = {"capture", "prefilter", "runtime", "preview", "crowd"}
 
 
 def _library_files():
