@@ -7,7 +7,7 @@
 //
 // The fragment stage is crowd_frag.glsl with its `main` renamed (`#define main crowd_shade`) and a
 // `main` after it that tone-maps its linear out_color as the page does (crowd_exposure > 0), or
-// keeps it linear (0: the tests' float target).  The lookup is the page's method when the crowd
+// keeps it linear (0: the tests' float target; < 0: the varyings, renderLinear).  The lookup is the page's method when the crowd
 // shader runs it (crowd.json `methods`), else crowd.json `default_method`.
 import { program, setStreet } from "./runtime.js";
 import { DEPTH_AB } from "./scene_raster.js";
@@ -17,7 +17,11 @@ const FRAG_MAIN = `
 uniform float crowd_exposure;
 void main() {
     crowd_shade();
-    if (crowd_exposure > 0.0) {
+    if (crowd_exposure == -1.0) out_color = vec4(v_position, float(v_walker + 1));   // tests: the shading point, walker + 1
+    else if (crowd_exposure == -2.0) out_color = vec4(normalize(v_normal), 1.0);
+    else if (crowd_exposure == -3.0) out_color = v_self0;
+    else if (crowd_exposure == -4.0) out_color = v_self1;
+    else if (crowd_exposure > 0.0) {
         vec3 c = out_color.rgb * crowd_exposure;
         c = c / (1.0 + c);
         out_color = vec4(pow(c, vec3(1.0 / 2.2)), 1.0);
@@ -146,7 +150,9 @@ export class Crowd {
   }
   // Tests: the crowd alone into a width x height RGBA32F target cleared to 0 (linear radiance,
   // alpha 1 on walkers), rows from the bottom; `view` {viewProj (16, column-major), eye}.
-  renderLinear(view, street, tex, pageMethod, width, height) {
+  // `output`: 0 radiance, -1 the shading point (render frame; w: walker + 1), -2 the interpolated
+  // normal, -3 / -4 the self spheres its vertices placed (crowd_vert.glsl v_self0 / v_self1).
+  renderLinear(view, street, tex, pageMethod, width, height, output = 0) {
     const gl = this.gl, fbo = gl.createFramebuffer(), color = gl.createTexture(), depth = gl.createRenderbuffer();
     gl.bindTexture(gl.TEXTURE_2D, color);
     gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA32F, width, height, 0, gl.RGBA, gl.FLOAT, null);
@@ -157,7 +163,7 @@ export class Crowd {
     gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.DEPTH_ATTACHMENT, gl.RENDERBUFFER, depth);
     gl.viewport(0, 0, width, height);
     gl.clearColor(0, 0, 0, 0); gl.clearDepth(1); gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
-    this.draw({ viewProj: new Float32Array(view.viewProj), eye: view.eye }, street, tex, pageMethod, 0);
+    this.draw({ viewProj: new Float32Array(view.viewProj), eye: view.eye }, street, tex, pageMethod, output);
     const px = new Float32Array(4 * width * height);
     gl.readPixels(0, 0, width, height, gl.RGBA, gl.FLOAT, px);
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
