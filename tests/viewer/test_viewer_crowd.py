@@ -6,6 +6,8 @@ renderer's (same instance data, same view-projection) and equals the numpy twin 
 fragments."""
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -217,3 +219,13 @@ def test_the_page_crowd_equals_the_numpy_twin_at_its_own_fragments(crowd_page, c
     print("page vs numpy twin at 12 fragments: max %.2e (probes only), %.2e (+ neighbours)" % (err[:, :3].max(), err[:, 3:].max()))
     assert np.abs(want[:, 3:] - want[:, :3]).max() > 1e-3 * np.abs(want).max(), "the terms changed nothing here"
     assert err.max() < 1e-3   # float32 WebGL2 against float64 numpy, the same half-float probe texels: ~1e-5 measured
+
+
+def test_view_refuses_a_file_that_is_no_avatar_in_one_line(viewer_probe_dir, tmp_path):
+    bad = tmp_path / "not_an_avatar.glb"
+    bad.write_bytes(b"glTF\x02\x00\x00\x00" + bytes(12))
+    p = subprocess.run([sys.executable, "-m", "envcap", "view", str(viewer_probe_dir), "--avatar", str(bad)],
+                       capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2 and p.stdout == ""
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("envcap: error: ") and "not_an_avatar.glb" in lines[0], p.stderr
