@@ -229,3 +229,32 @@ def test_view_refuses_a_file_that_is_no_avatar_in_one_line(viewer_probe_dir, tmp
     assert p.returncode == 2 and p.stdout == ""
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("envcap: error: ") and "not_an_avatar.glb" in lines[0], p.stderr
+
+
+@pytest.mark.slow
+def test_the_crowd_switches_drive_the_crowd(crowd_page):
+    """The page's controls: walkers on/off, terms, count (its clip fetched), walk (the clip's time
+    runs while ticked and stops when unticked)."""
+    js = """(async () => {
+      const $ = (id) => document.getElementById(id), v = window.envcap.viewer, gl = v.gl;
+      gl.canvas.width = 64; gl.canvas.height = 40;
+      const set = async (id, value) => { const e = $(id); if (e.type === 'checkbox') e.checked = value; else e.value = value;
+        e.onchange(); await new Promise((r) => setTimeout(r, 300)); };
+      const out = {hidden: $('crowd_controls').hidden, counts: Array.from($('crowd_count').options).map((o) => Number(o.value))};
+      await set('crowd', true); await set('crowd_terms', '1'); await set('crowd_count', '32');
+      const c = v.crowd; out.on = c.on; out.terms = c.terms; out.count = c.count; out.clip = c.clips.get(32).length;
+      const t0 = c.time; await set('crowd_walk', true); await new Promise((r) => setTimeout(r, 600));
+      out.walked = c.time - t0; await set('crowd_walk', false); const t1 = c.time;
+      await new Promise((r) => setTimeout(r, 400)); out.after = c.time - t1;
+      await set('crowd', false); out.off = c.on;
+      await set('crowd_terms', '2'); await set('crowd_count', '16'); c.on = true; c.setTime(0); c.frame = 3;
+      return out; })()"""
+    out = crowd_page.evaluate(js)
+    j = crowd_page.evaluate("window.envcap.viewer.crowd.desc.joints")
+    assert out["hidden"] is False and out["counts"] == [8, 16, 32, 64]
+    assert out["on"] is True and out["terms"] == 1 and out["count"] == 32
+    assert out["clip"] == FRAMES * 32 * (6 * j + 2 * NEIGHBOURS) * 4
+    assert out["walked"] > 0.1, out
+    assert out["after"] == 0.0, out
+    assert out["off"] is False
+    assert crowd_page.errors == []

@@ -181,18 +181,21 @@ export function setupCrowdControls(viewer, redraw) {
   $("crowd_controls").hidden = false;
   for (const n of viewer.cfg.crowd.counts) { const o = document.createElement("option"); o.value = o.textContent = String(n); $("crowd_count").appendChild(o); }
   $("crowd_count").value = String(viewer.cfg.crowd.default_count);
+  // walking: advance the clip's time by the time that passed, one frame of the clip at a time
+  // (a timer at its frame rate: drawing more often would show the same frame again)
   let last = null;
-  const step = (now) => {  // walking: advance the clip's time while the box is ticked
+  const step = () => {
     if (!viewer.crowd || !$("crowd_walk").checked || !viewer.crowd.on) { last = null; return; }
+    const now = performance.now();
     if (last !== null) viewer.crowd.setTime(viewer.crowd.time + (now - last) / 1000);
-    last = now; viewer.render(); requestAnimationFrame(step);
+    last = now; viewer.render(); setTimeout(step, 1000 / viewer.crowd.desc.fps);
   };
   const apply = async () => {
     const c = await viewer.crowdLoad();
     c.on = $("crowd").checked; c.terms = Number($("crowd_terms").value);
     await c.setCount(Number($("crowd_count").value));
     redraw();
-    if ($("crowd_walk").checked && last === null) requestAnimationFrame(step);
+    if ($("crowd_walk").checked && last === null) step();
   };
   for (const id of ["crowd", "crowd_terms", "crowd_count", "crowd_walk"]) $(id).onchange = () => { apply().catch((e) => { $("status").textContent = "crowd: " + e.message; }); };
 }
