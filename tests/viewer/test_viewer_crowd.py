@@ -131,6 +131,8 @@ def test_the_crowd_appears_in_the_street_view_where_walkers_project(crowd_page, 
 def test_each_term_switch_moves_the_avatars_pixels_the_expected_way(crowd_page, crowd_ref):
     cam = close_camera(crowd_ref["pose"], np.array(crowd_ref["desc"]["origin"]))
     imgs = [page_linear(crowd_page, cam, t) for t in (0, 1, 2)]
+    on_map = np.array(crowd_page.evaluate("window.envcap.viewer.crowd.positions()"))   # the map's walker dots
+    np.testing.assert_allclose(on_map, crowd_ref["pose"].heads[:, 0] + crowd_ref["desc"]["origin"], atol=1e-4)
     mask = (imgs[0][..., 3] > 0) & (imgs[1][..., 3] > 0) & (imgs[2][..., 3] > 0)
     assert mask.sum() > 200, mask.sum()
     lum = [(im[..., :3] @ [0.2126, 0.7152, 0.0722])[mask] for im in imgs]

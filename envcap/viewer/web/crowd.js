@@ -64,6 +64,14 @@ export class Crowd {
     if (!this.clips.has(n)) this.clips.set(n, new Float32Array(await fetch(url).then((r) => r.arrayBuffer())));
     this.count = n; this.uploaded = null;
   }
+  // World positions [x, y, z] of the walkers shown (their first joint's head, clip frame), for the map.
+  positions() {
+    if (!this.on || !this.count) return [];
+    const clip = this.clips.get(this.count), d = this.desc, o = d.origin, row = this.rowTexels * 4;
+    const base = this.frame * this.count * (row + 2 * d.neighbours * 4), at = 4 * 5 * d.joints, out = [];
+    for (let i = 0; i < this.count; ++i) { const k = base + i * row + at; out.push([clip[k] + o[0], clip[k + 1] + o[1], clip[k + 2] + o[2]]); }
+    return out;
+  }
   setTime(t) { this.time = t; this.frame = Math.floor(t * this.desc.fps + 1e-6) % this.desc.frames; }
   method(pageMethod) {  // {name, glsl, planes, taps} the crowd shader runs
     const name = this.desc.methods.includes(pageMethod.name) ? pageMethod.name : this.desc.default_method;

@@ -194,7 +194,7 @@ class Viewer {
     if (cs) this.crowd.draw(this.crowd.camera(this.cam.pos, rot, Math.tan(0.5 * 70 * Math.PI / 180), canvas.width / canvas.height), cs, this.tex, this.method, this.exposure0 * Math.pow(2, this.ev));
     gl.disable(gl.DEPTH_TEST);
     this.cfg.currentMethod = this.method.name;
-    drawMap($("map"), this.cfg, this.cam, this.group);
+    drawMap($("map"), this.cfg, this.cam, this.group.concat(this.crowd ? this.crowd.positions() : []));  // spheres and walkers
     let where = `street ${st.name}${st.frame.yaw_deg ? ` (${st.frame.yaw_deg.toFixed(1)}\u00b0)` : ""}` +
       (this.cfg.city ? ` (shard ${this.shard + 1} of ${this.cfg.city.shards.length})` : "") + `  x=${this.cam.pos.map((v) => v.toFixed(1)).join(", ")} m  method ${this.method.name}`;
     const ev = nearestEvaluation(this.cfg.evaluation || [], this.cam.pos);
