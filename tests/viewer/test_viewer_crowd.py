@@ -260,3 +260,17 @@ def test_the_crowd_switches_drive_the_crowd(crowd_page):
     assert out["after"] == 0.0, out
     assert out["off"] is False
     assert crowd_page.errors == []
+
+
+def test_view_avatar_serves_an_envcap_avatar_file_as_the_bundled_walker(viewer_probe_dir, viewer_server, tmp_path):
+    """``envcap avatar walker.glb`` then ``envcap view --avatar``: the crowd's avatar is that file,
+    and its mesh, skin and blockers serve byte for byte as the bundled walker annotated in memory."""
+    from envcap.cli import main
+    from envcap.core.resources import city_scenes_dir
+    from envcap.viewer import ViewerSite
+
+    glb = tmp_path / "my_walker.glb"
+    assert main(["avatar", str(city_scenes_dir() / "avatars/walker.glb"), "--out", str(glb), "--quiet"]) == 0
+    routes = ViewerSite.open(viewer_probe_dir, avatar=glb).routes()
+    assert json.loads(routes["/api/crowd.json"]())["avatar"]["name"] == "my_walker.glb"
+    assert routes["/api/crowd/avatar.bin"]() == viewer_server.body("/api/crowd/avatar.bin")
