@@ -4,6 +4,8 @@ a time (docs/viewer.md).
 
 * :mod:`envcap.viewer.site`: what the page reads besides the probe set's files (street uniforms
   from the manifest, the runtime GLSL for WebGL2, the evaluation report's plots);
+* :mod:`envcap.viewer.crowd_site`: the crowd of ``envcap crowd`` in the street view (walkers
+  posed in numpy, sent per frame as the crowd shader's textures);
 * :mod:`envcap.viewer.server`: the HTTP server (``http.server``, loopback only);
 * :mod:`envcap.viewer.browser`: headless Chromium over the DevTools protocol (tests, screenshots,
   the WebGL2 cost benchmark);

@@ -93,7 +93,7 @@ class CitySite:
         """The page's ``api/config.json``: shard 0's config, the city's streets and shards, the report."""
         cfg = self.shards[0].config()
         cfg.update(scene=self.index.scene.name or cfg.get("scene"), plots=report_plots(self.report_dir),
-                   evaluation=report_positions(self.report_dir))
+                   evaluation=report_positions(self.report_dir), crowd=None)   # the crowd walks in a probe set's view only
         cfg["city"] = {"shard": 0, "streets": self.map_streets(),
                        "shards": [{"path": sh.path, "streets": list(sh.streets), "config": f"api/shards/{i}.json"}
                                   for i, sh in enumerate(self.index.shards)]}

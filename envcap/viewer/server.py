@@ -7,7 +7,7 @@ Routes (GET / HEAD): the site's :meth:`~envcap.viewer.site.ViewerSite.routes` (a
 files (:data:`envcap.viewer.site.WEB_DIR`); ``/set/NAME`` -> the files the probe set's manifest
 names (``manifest.json``, ``probes_atlas.ktx2``, ``sky.ktx2``, ...); ``/report/NAME`` -> the
 report's ``report.json`` and PNG plots; ``/api/config.json`` and ``/api/runtime.glsl``
-(:mod:`envcap.viewer.site`).  Anything else is 404.
+(:mod:`envcap.viewer.site`); the crowd's fixed ``/api/crowd*`` routes (:mod:`envcap.viewer.crowd_site`).  Anything else is 404.
 
 What the server guarantees (``docs/reliability.md``, "Threat model"):
 

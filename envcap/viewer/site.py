@@ -50,6 +50,7 @@ from envcap.runtime.limits import MAX_PROBES
 from envcap.runtime.shader_targets import prologue
 from envcap.runtime.street import StreetProbes, StreetUniforms
 from envcap.viewer.babylon_build import find_babylon
+from envcap.viewer.crowd_site import CrowdSite, crowd_config
 
 WEB_DIR = Path(__file__).resolve().parent / "web"
 """The page's static files (``index.html``, ``three.html``, ``babylon.html`` and their ES modules;
@@ -220,16 +221,18 @@ class ViewerSite:
     """A probe set as the viewer serves it: ``probe_dir`` (with ``manifest.json`` and, for WebGL2,
     ``probes_atlas.ktx2``), its checked :class:`Manifest`, an optional evaluation ``report_dir``,
     and ``prefix``, the site folder its files are served under (``set/``; a city's shard:
-    ``set/<shard path>/``)."""
+    ``set/<shard path>/``), ``avatar``: the crowd's avatar (an ``envcap avatar`` file; ``None``:
+    the bundled walker)."""
 
     probe_dir: Path
     manifest: Manifest
     report_dir: Path | None = None
     prefix: str = "set/"
+    avatar: Path | None = None
 
     @staticmethod
     def open(probe_dir: str | Path, report_dir: str | Path | None = None, *, require_atlas: bool = True,
-             prefix: str = "set/", find_report_dir: bool = True) -> "ViewerSite":
+             prefix: str = "set/", find_report_dir: bool = True, avatar: str | Path | None = None) -> "ViewerSite":
         """Check and open ``probe_dir`` (``FileNotFoundError`` / ``ValueError`` naming the problem;
         :class:`MissingAtlas` without the face atlas when ``require_atlas``: ``envcap export web``
         opens with ``False`` and makes it).  ``report_dir`` default: :func:`find_report` (when
@@ -255,7 +258,7 @@ class ViewerSite:
         if rep is not None and not (rep / "report.json").is_file():
             raise FileNotFoundError(f"{rep}: not an evaluation report (no report.json)")
         report_files(rep)   # its report.json inside it: OutsideFolder otherwise
-        return ViewerSite(root, m, rep, prefix)
+        return ViewerSite(root, m, rep, prefix, None if avatar is None else Path(avatar).resolve())
 
     @property
     def atlas_name(self) -> str:
@@ -296,12 +299,17 @@ class ViewerSite:
 
     def routes(self) -> Routes:
         """Everything the site serves: the page (:func:`page_routes`), the probe set's files, the
-        report's (:func:`report_routes`), ``/api/config.json`` and ``/api/runtime.glsl``."""
+        report's (:func:`report_routes`), ``/api/config.json``, ``/api/runtime.glsl`` and the crowd's
+        (:meth:`envcap.viewer.crowd_site.CrowdSite.routes`: the walkers of ``envcap crowd`` on the
+        first street, with :attr:`avatar` or the bundled walker)."""
         out = page_routes()
         out.update(self.set_routes())
         out.update(report_routes(self.report_dir))
         out["/api/config.json"] = lambda: json.dumps(self.config(), allow_nan=False).encode()
         out["/api/runtime.glsl"] = lambda: runtime_glsl_webgl2().encode()
+        crowd = CrowdSite.of(self.manifest, self.streets(), self.avatar)
+        if crowd is not None:
+            out.update(crowd.routes())
         return out
 
     def files(self) -> dict[str, str]:
@@ -368,4 +376,5 @@ class ViewerSite:
                 "shown": "layer r = 0 of each level (the manifest's lobe table), not the rung blend"},
             "streets": self.streets(), "methods": self.methods(), "plots": self.report_plots(),
             "evaluation": self.report_positions(),
+            "crowd": crowd_config() if any(st.probes for st in m.streets) else None,
         }

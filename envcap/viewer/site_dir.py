@@ -61,18 +61,21 @@ def find_probe_dir(given: str | Path) -> tuple[Path, Path]:
 
 
 def open_site(given: str | Path, report: str | Path | None = None, *,
-              require_atlas: bool = True) -> ViewerSite | CitySite:
+              require_atlas: bool = True, avatar: str | Path | None = None) -> ViewerSite | CitySite:
     """The site of the directory ``given`` (module docstring); ``report``: the evaluation report
-    (default: beside the probe set, :func:`envcap.viewer.site.find_report`).  Without a face
-    atlas and ``require_atlas``: ``ValueError`` with the command that makes it."""
+    (default: beside the probe set, :func:`envcap.viewer.site.find_report`); ``avatar``: the
+    crowd's (a probe set's view only).  Without a face atlas and ``require_atlas``:
+    ``ValueError`` with the command that makes it."""
     probe_dir, top = find_probe_dir(given)
     if report is None:
         found = find_report(probe_dir) or (find_report(top) if top != probe_dir else None)
         report = found
     try:
         if (probe_dir / INDEX_FILE).is_file() and not (probe_dir / MANIFEST).is_file():
+            if avatar is not None:
+                raise ValueError(f"--avatar: {probe_dir} is a city; the crowd walks in a probe set's view only")
             return CitySite.open(probe_dir, report, require_atlas=require_atlas)
-        return ViewerSite.open(probe_dir, report, require_atlas=require_atlas)
+        return ViewerSite.open(probe_dir, report, require_atlas=require_atlas, avatar=avatar)
     except MissingAtlas as e:
         raise ValueError(f"{e}; make it with: {atlas_command(given)}  (then: envcap view "
                          f"{shlex.quote(str(export_dir_for(given)))})") from None

@@ -11,6 +11,7 @@ import { FULLSCREEN_VS, LookupRunner, bindProbes, fragmentSource, program, setSt
 import { loadGlb } from "./gltf.js";
 import { DEPTH_AB, SceneRaster } from "./scene_raster.js";
 import { distanceToStreet, groundAt, toFrame, toLocal } from "./street_frame.js";
+import { Crowd, setupCrowdControls } from "./crowd.js";
 
 const SCENE_MAIN = `
 uniform vec3 cam_pos;            // street-local m (the street's frame, minus its origin)
@@ -111,6 +112,7 @@ class Viewer {
     this.skyMean = s / n;
     return s > 0 ? 0.5 / (s / n) : 1;
   }
+  crowdLoad() { return (this.crowdLoading ||= Crowd.load(this.gl, this.cfg.crowd.url, this.methods).then((c) => (this.crowd = c))); }
   setScene(mesh) { this.scene = new SceneRaster(this.gl, mesh, this.skyMean, this.cfg.sun); }
   streetIndex(streets = this.cfg.streets) {  // the street whose box (in its own frame) is nearest to the camera
     let best = 0, bd = Infinity;
@@ -188,9 +190,11 @@ class Viewer {
       this.scene.draw(this.cam.pos, [...right, ...up, -f[0], -f[1], -f[2]], Math.tan(0.5 * 70 * Math.PI / 180),
                       canvas.width / canvas.height, this.exposure0 * Math.pow(2, this.ev));
     }
+    const rot = [...right, ...up, -f[0], -f[1], -f[2]], cs = this.crowd && this.cfg.streets[this.crowd.desc.street];
+    if (cs) this.crowd.draw(this.crowd.camera(this.cam.pos, rot, Math.tan(0.5 * 70 * Math.PI / 180), canvas.width / canvas.height), cs, this.tex, this.method, this.exposure0 * Math.pow(2, this.ev));
     gl.disable(gl.DEPTH_TEST);
     this.cfg.currentMethod = this.method.name;
-    drawMap($("map"), this.cfg, this.cam, this.group);
+    drawMap($("map"), this.cfg, this.cam, this.group.concat(this.crowd ? this.crowd.positions() : []));  // spheres and walkers
     let where = `street ${st.name}${st.frame.yaw_deg ? ` (${st.frame.yaw_deg.toFixed(1)}\u00b0)` : ""}` +
       (this.cfg.city ? ` (shard ${this.shard + 1} of ${this.cfg.city.shards.length})` : "") + `  x=${this.cam.pos.map((v) => v.toFixed(1)).join(", ")} m  method ${this.method.name}`;
     const ev = nearestEvaluation(this.cfg.evaluation || [], this.cam.pos);
@@ -324,6 +328,7 @@ function setupControls(viewer) {
   ev.oninput = () => { viewer.ev = Number(ev.value); $("ev_value").textContent = ev.value; redraw(); };
   $("probes").onchange = (e) => { viewer.showProbes = e.target.checked; redraw(); };
   $("group").onclick = () => { viewer.placeGroup(); redraw(); };
+  setupCrowdControls(viewer, redraw);
   const canvas = viewer.gl.canvas;
   let drag = null;
   canvas.onmousedown = (e) => { drag = [e.clientX, e.clientY]; };
@@ -407,5 +412,6 @@ ready.then((v) => {
   window.envcap.bench = (...a) => v.bench(...a);
   window.envcap.methods = () => v.methods.map((m) => m.name);
   window.envcap.mapPoint = (x, z) => mapTransform($("map"), v.cfg).to(x, z);  // world plan point -> map pixel
+  window.envcap.crowd = () => v.crowdLoad();  // the crowd (crowd.js Crowd), loaded on first use
   window.envcap.settled = () => Promise.resolve(v.loading).then(() => v.shard);  // a city: the shard once loaded
 });
