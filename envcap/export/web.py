@@ -1,4 +1,4 @@
-"""Export target ``web``: a probe set as a static site for WebGL2 and three.js, served by any static
+"""Export target ``web``: a probe set as a static site for WebGL2, WebGPU, three.js and Babylon.js, served by any static
 file server (``python3 -m http.server``), no envcap process (``docs/engines.md``, section 7).
 
 The site is exactly what ``envcap view`` serves (:meth:`envcap.viewer.site.ViewerSite.routes`),
@@ -6,13 +6,18 @@ written as files; the page's URLs are relative, so it works from any folder of a
 
     index.html            the viewer page (map, street view, method switch)
     three.html            the probe set in three.js (web/three_example.js through web/three_probes.js)
+    three_webgpu.html     the same on three.js's WebGPURenderer: probes.ktx2 as a cube-map array,
+                          shaded by the WGSL runtime (web/three_webgpu_example.js, web/three_webgpu.wgsl)
     babylon.html          the probe set in Babylon.js (web/babylon_example.js through web/babylon_probes.js)
     web/                  the pages' ES modules (ktx2.js, runtime.js, three_probes.js, ...)
-    three/                three.js r187 (three.module.js, three.core.js; MIT, three.LICENSE)
+    three/                three.js r187 (three.module.js, three.core.js, three.webgpu.js, three.tsl.js;
+                          MIT, three.LICENSE)
     babylon/              Babylon.js (babylon.js; Apache-2.0, its license and notice), copied from
                           an npm install (:mod:`envcap.viewer.babylon_build`; envcap does not ship it)
     api/config.json       streets with their runtime uniforms (EnvcapStreet), methods, sun, lobe powers
     api/runtime.glsl      the runtime GLSL, WebGL2 target (GLSL ES 3.00, includes resolved)
+    api/crowd*            the viewer's crowd: its config, avatar mesh, per-frame walker textures and
+                          the crowd GLSL for WebGL2 (envcap.viewer.crowd_site)
     set/                  the probe set: manifest.json, probes.ktx2, sky.ktx2, probes_atlas.ktx2
                           (+ scene.glb); a city: city.json, street_map.ktx2, set/shards/NAME/...
     report/               the evaluation report's report.json and plots, if there is one
@@ -43,7 +48,7 @@ from envcap.viewer.city_site import CitySite
 from envcap.viewer.site import ViewerSite
 from envcap.viewer.site_dir import open_site
 
-SUMMARY = "a static site for WebGL2 / three.js / Babylon.js: probe files, street uniforms (JSON), runtime GLSL, example pages"
+SUMMARY = "a static site for WebGL2 / WebGPU / three.js / Babylon.js: probe files, street uniforms (JSON), runtime GLSL, example pages"
 KIND = "web-export"
 WEB_FILES = ("probes", "sky", "probes_atlas", "scene_gltf")
 """The manifest ``files`` entries a web export keeps."""
@@ -54,18 +59,20 @@ A probe set as a static site: serve this folder with any static file server, e.g
 
     python3 -m http.server 8000
 
-and open http://localhost:8000/ (the viewer), http://localhost:8000/three.html (three.js) or
-http://localhost:8000/babylon.html (Babylon.js).
+and open http://localhost:8000/ (the viewer), http://localhost:8000/three.html (three.js),
+http://localhost:8000/three_webgpu.html (three.js on WebGPU) or http://localhost:8000/babylon.html
+(Babylon.js).
 Browsers do not run ES modules from file:// URLs, so a server is needed, but no envcap process.
 
-* `index.html`, `three.html`, `babylon.html`, `web/`: the pages (`web/three_probes.js` and
-  `web/babylon_probes.js` load the probe set into three.js and Babylon.js;
-  `web/three_example.js` and `web/babylon_example.js` are the examples using them);
-* `three/`: three.js r187 (MIT, `three/three.LICENSE`);
+* `index.html`, `three.html`, `three_webgpu.html`, `babylon.html`, `web/`: the pages
+  (`web/three_probes.js` and `web/babylon_probes.js` load the probe set into three.js and
+  Babylon.js; `web/three_example.js`, `web/three_webgpu_example.js` and `web/babylon_example.js`
+  are the examples using them; `web/three_webgpu.wgsl` is the WebGPU example's shader, WGSL);
+* `three/`: three.js r187 with its WebGPU build (MIT, `three/three.LICENSE`);
 * `babylon/`: {babylon};
 * `api/config.json`: the streets and their runtime uniforms (`streets[i].uniforms.nominal`, the
   `EnvcapStreet` struct), the methods, the sun, the lobe powers;
-* `api/runtime.glsl`: the runtime GLSL for WebGL2 (GLSL ES 3.00);
+* `api/runtime.glsl`: the runtime GLSL for WebGL2 (GLSL ES 3.00); `api/crowd*`: the viewer's crowd;
 * `set/`: the probe set ({what}){report}.
 
 Made by `envcap export web` (envcap docs/engines.md, section 7).
@@ -121,5 +128,5 @@ def write_web_site(source: Path, out: Path, report: Path | None) -> str:
                  f"missing: envcap does not ship Babylon.js; run  {INSTALL_COMMAND}  (or set ENVCAP_BABYLON to a "
                  "folder holding babylon.js) and export again")))
     return ("serve it with any static server, e.g.  python3 -m http.server 8000 --directory {out}\n"
-            "and open http://localhost:8000/ (the viewer), http://localhost:8000/three.html (three.js) or\n"
-            "http://localhost:8000/babylon.html (Babylon.js)" + ("" if babylon else "\nnote: " + missing_note()))
+            "and open http://localhost:8000/ (the viewer), http://localhost:8000/three.html (three.js),\n"
+            "http://localhost:8000/three_webgpu.html (three.js on WebGPU) or http://localhost:8000/babylon.html (Babylon.js)" + ("" if babylon else "\nnote: " + missing_note()))
