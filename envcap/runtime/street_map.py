@@ -17,6 +17,13 @@ Where rectangles overlap (crossings, at any angle) the cell goes to the street w
 ``|across - center|``); exact ties go to the lower index.  A street that covers no cell centre
 (narrower than a cell) is an error, never dropped silently.
 
+Crossings (optional, :mod:`envcap.probeset.crossings`): with ``crossings`` (the set's meetings,
+``n`` streets), a cell whose centre lies in crossing ``k``'s region (where the corridors of two of
+its streets overlap; overlapping regions: the nearest centre) gets id ``n + 1 + k`` instead of a
+street's, so that one lookup tells a crossing from its streets: :func:`crossing_index` (GLSL
+``envcap_street_map_crossing``) gives ``k`` (-1 for a street or none).  The crossing's probe and
+streets are ``Manifest.crossings[k]`` (docs/crossings.md).  A map without crossings is unchanged.
+
 Lookup (:meth:`StreetMap.lookup`, GLSL ``envcap_street_map_id``), in float32 like the GPU:
 ``u = floor((p - origin) * inv_cell)`` with ``p = (x, z)``, ``origin`` and ``inv_cell = 1 / cell``
 rounded to float32; the id of cell ``u`` when ``0 <= u < (columns, rows)``, else 0 (outside the
@@ -54,6 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.core.street_frame import world_to_frame, yaw_cos_sin
 from envcap.probeset.city_index import street_bounds
+from envcap.probeset.crossings import Meeting, corridor, crossing_of
 from envcap.probeset.manifest import Street
 
 MAX_STREETS = 65535      # uint16 ids, 0 reserved for "no street"
@@ -112,19 +120,30 @@ class StreetMap:
         return out
 
 
+def crossing_index(ids: ArrayLike, street_count: int) -> NDArray[np.int64]:
+    """Per street-map id: the crossing index ``k`` (id ``street_count + 1 + k``), -1 for a street or
+    none; the numpy twin of GLSL ``envcap_street_map_crossing``."""
+    i = np.asarray(ids, np.int64)
+    return np.where(i > street_count, i - street_count - 1, -1)
+
+
 def street_map(streets: Sequence[Street], cell: float, *, origin: tuple[float, float] | None = None,
-               size: tuple[int, int] | None = None) -> StreetMap:
+               size: tuple[int, int] | None = None, crossings: Sequence[Meeting] = ()) -> StreetMap:
     """Rasterize ``streets`` (a manifest's ``streets``, id = index + 1, at any angle) into a
     :class:`StreetMap` of ``cell`` meters (rule: the module docstring).  By default the grid is
     the smallest one on multiples of ``cell`` that holds every street's world box
     (:func:`envcap.probeset.city_index.street_bounds`); ``origin`` (x, z) and ``size`` (columns,
-    rows) set it instead.  Each street is tested on the cells of its world box only.  A grid past
+    rows) set it instead.  Each street is tested on the cells of its world box only.  ``crossings``:
+    the meetings of ``streets`` (:func:`envcap.probeset.crossings.detect_crossings`, or
+    :func:`envcap.probeset.crossings.meetings_of` a manifest's table), rasterized over the streets'
+    cells as ids ``len(streets) + 1 + k`` (module docstring).  A grid past
     :data:`MAX_MAP_SIZE` texels per side is a ``ValueError`` (naming ``--map-cell`` and the smallest
     cell that fits) before anything is allocated."""
     if not streets:
         raise ValueError("a street map needs at least one street")
-    if len(streets) > MAX_STREETS:
-        raise ValueError(f"{len(streets)} streets do not fit in uint16 ids (at most {MAX_STREETS})")
+    if len(streets) + len(crossings) > MAX_STREETS:
+        raise ValueError(f"{len(streets)} streets and {len(crossings)} crossings do not fit in uint16 ids "
+                         f"(at most {MAX_STREETS})")
     if not (math.isfinite(cell) and cell > 0):
         raise ValueError(f"cell must be a positive finite size in meters, got {cell}")
     boxes = np.array([street_bounds(st) for st in streets], dtype=np.float64)
@@ -158,6 +177,11 @@ def street_map(streets: Sequence[Street], cell: float, *, origin: tuple[float, f
         take = covered & (dist < win_best)                 # strict: ties stay with the lower index
         win_best[take] = dist[take]
         win_ids[take] = k + 1
+    if crossings:
+        cors = [corridor(st) for st in streets]
+        X, Z = np.meshgrid(cx, cz)
+        k = crossing_of(cors, crossings, np.stack([X, Z], axis=-1))
+        ids[k >= 0] = (len(streets) + 1 + k[k >= 0]).astype(np.uint16)
     return StreetMap(ids=ids, origin=(float(origin[0]), float(origin[1])), cell=float(cell))
 
 
