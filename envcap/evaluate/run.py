@@ -254,7 +254,7 @@ def evaluate_scene(
     progress: bool | None = None,
     max_positions: int = MAX_POSITIONS,
     report: BakeProgress | None = None,
-    crossings: bool = True,
+    crossings: bool | str = True,
 ) -> EvaluationResult:
     """Evaluate the probe set ``probe_set`` of ``scene`` against fresh captures.
 
@@ -341,6 +341,8 @@ def evaluate_scene(
         r["scene"] = scene.name
     meta = _meta(scene.name, probe_set, settings, sweep if positions is None else None, len(pos_list), materials,
                  composite_rows)
+    meta["crossings"] = [c.name for c in probe_set.manifest.crossings or ()]
+    meta["crossing_lookup"] = predictor.crossing_mode if meta["crossings"] else None
     return EvaluationResult(scene.name, pos_list, rows, summarize(scene.name, rows), shading, times, meta,
                             floor=summarize(scene.name, floor_rows),
                             strips={"positions": kept, "key_method": key, "key_power": wkey})
