@@ -82,7 +82,7 @@ class Predictor:
         self.corridors = [corridor(st) for st in manifest.streets]
         self.meetings = meetings_of(manifest.streets, table)
         self.crossing_centres = [np.array(c.centre, np.float64) for c in table]   # world, m
-        self.crossing_probes = []      # per crossing: (owner street, index of its probe in StreetProbes)
+        self.crossing_probes: list[tuple[str, int]] = []   # per crossing: (owner street, index of its probe in StreetProbes)
         for c in table:
             sp = self.streets[c.streets[0]]
             self.crossing_probes.append((c.streets[0], int(np.flatnonzero(sp.layers == c.probe_layer)[0])))
@@ -97,8 +97,10 @@ class Predictor:
 
     def local_street(self, name: str, x: ArrayLike, planes: str = "nominal") -> RuntimeStreet:
         """The runtime street of the :data:`LOCAL_PROBES` probes nearest ``x`` along street ``name``
-        with the plane set ``planes``; inside a crossing (:meth:`crossing_at`) that of the crossing
-        probe alone, in its owning street's frame and planes."""
+        with the plane set ``planes``; inside a crossing (:meth:`crossing_at`) as the crossing mode
+        says (:data:`CROSSING_MODES`): ``shared`` those probes with the crossing probe among them,
+        ``probe`` the crossing probe alone (its owner's frame and planes), ``plan`` the meeting street
+        whose probe is nearest to ``x`` in plan, as ``shared``."""
         if name not in self.streets:
             raise ValueError(f"probe set has no street named {name!r}")
         k = self.crossing_at(x)
@@ -115,7 +117,8 @@ class Predictor:
 
     def _shared_street(self, name: str, k: int, x: NDArray[np.float64], planes: str) -> RuntimeStreet:
         """Street ``name``'s local probes with crossing ``k``'s probe among them (the owner's own
-        probe; for another street, its position in this street's frame with this street's planes)."""
+        probe; for another street, its position in this street's frame with the planes of this
+        street's probe nearest to it)."""
         owner, i = self.crossing_probes[k]
         sp = self.streets[name]
         local = sp.local(x, LOCAL_PROBES, planes)

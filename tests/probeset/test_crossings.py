@@ -119,3 +119,19 @@ def test_bad_crossing_entries_are_one_line_naming_the_field(crossed, entry, msg)
     with pytest.raises(ValueError, match=msg) as e:
         Manifest.from_json(obj)
     assert "crossings[0]" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_the_evaluator_resolves_a_crossing_to_its_probe(crossed):
+    from envcap.evaluate.predict import Predictor
+    centre = 2    # the crossing probe's layer; east_west layers 0..4, north_south 5..8 (z = -7.5, -2.5, 2.5, 7.5)
+    inside, outside = np.array([0.5, 1.5, 1.0]), np.array([0.5, 1.5, 9.0])
+    probe, shared, off = (Predictor(crossed, crossings=m) for m in ("probe", "shared", "off"))
+    assert probe.crossing_at(inside) == 0 and probe.crossing_at(outside) == -1 and off.crossing_at(inside) == -1
+    assert list(probe.local_street("north_south", inside).layers) == [centre]
+    # shared: north_south's 4 nearest probes along it and the centre probe, sorted along z, with north_south's planes
+    st = shared.local_street("north_south", inside, "fitted")
+    assert list(st.layers) == [5, 6, centre, 7, 8] and st.positions[2].tolist() == [0.0, 2.0, 0.0]
+    np.testing.assert_allclose(st.planes[2, :2], [-6.0, 6.0], atol=1e-3)    # its neighbour's fitted facades (x = -6, 6)
+    assert list(shared.local_street("east_west", inside).layers) == list(off.local_street("east_west", inside).layers)
+    for p in (probe, shared):      # outside the region: per street, as without crossings
+        assert list(p.local_street("north_south", outside).layers) == list(off.local_street("north_south", outside).layers)
