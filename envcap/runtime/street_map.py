@@ -178,11 +178,38 @@ def street_map(streets: Sequence[Street], cell: float, *, origin: tuple[float, f
         win_best[take] = dist[take]
         win_ids[take] = k + 1
     if crossings:
-        cors = [corridor(st) for st in streets]
-        X, Z = np.meshgrid(cx, cz)
-        k = crossing_of(cors, crossings, np.stack([X, Z], axis=-1))
-        ids[k >= 0] = (len(streets) + 1 + k[k >= 0]).astype(np.uint16)
+        _rasterize_crossings(ids, streets, boxes, crossings, cx, cz, cell)
     return StreetMap(ids=ids, origin=(float(origin[0]), float(origin[1])), cell=float(cell))
+
+
+def _rasterize_crossings(ids: NDArray[np.uint16], streets: Sequence[Street], boxes: NDArray[np.float64],
+                         crossings: Sequence[Meeting], cx: NDArray[np.float64], cz: NDArray[np.float64], cell: float) -> None:
+    """Write crossing ids into ``ids`` (in place): each crossing tested on the cells of the world box
+    of its region (the union of its streets' pairwise box overlaps), nearest centre first."""
+    n = len(streets)
+    bad = [m.streets for m in crossings if len(m.streets) < 2 or not all(0 <= i < n for i in m.streets)]
+    if bad:
+        raise ValueError(f"crossings name streets {bad[0]} of a map of {n} streets (need two or more of them)")
+    cors = [corridor(st) for st in streets]
+    best = np.full(ids.shape, np.inf)
+    for k, m in enumerate(crossings):
+        b = boxes[list(m.streets)]
+        pairs = [(max(p[0], q[0]), min(p[1], q[1]), max(p[2], q[2]), min(p[3], q[3]))
+                 for a, p in enumerate(b) for q in b[a + 1:]]
+        pairs = [w for w in pairs if w[0] <= w[1] and w[2] <= w[3]]
+        if not pairs:
+            continue
+        x0, x1 = min(w[0] for w in pairs), max(w[1] for w in pairs)
+        z0, z1 = min(w[2] for w in pairs), max(w[3] for w in pairs)
+        i0, i1 = np.searchsorted(cx, [x0 - cell, x1 + cell])
+        j0, j1 = np.searchsorted(cz, [z0 - cell, z1 + cell])
+        X, Z = np.meshgrid(cx[i0:i1], cz[j0:j1])
+        inside = crossing_of(cors, [m], np.stack([X, Z], axis=-1)) == 0
+        dist = np.hypot(X - m.centre[0], Z - m.centre[1])
+        win_best, win_ids = best[j0:j1, i0:i1], ids[j0:j1, i0:i1]     # views
+        take = inside & (dist < win_best)                            # strict: ties stay with the lower index
+        win_best[take] = dist[take]
+        win_ids[take] = n + 1 + k
 
 
 def _check_map_size(size: tuple[float, float], cell: float, extent_x: float, extent_z: float) -> None:

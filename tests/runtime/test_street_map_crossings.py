@@ -103,3 +103,9 @@ def test_glsl_matches_numpy_inside_and_outside_crossings(gl_ctx):
     k = crossing_index(ids, len(streets))
     assert np.array_equal(got[:, 0], ids.astype(np.float32)) and np.array_equal(got[:, 1], k.astype(np.float32))
     assert set(np.unique(k)) == set(range(-1, 6))
+
+
+def test_crossings_naming_streets_the_map_lacks_are_an_error():
+    import pytest
+    with pytest.raises(ValueError, match=r"crossings name streets \(0, 5\) of a map of 2 streets"):
+        street_map((A, B), 1.0, crossings=[Meeting((10.0, 0.0), (0, 5))])
