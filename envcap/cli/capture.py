@@ -88,6 +88,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "(default uniform, at --spacing; docs/placement.md)")
     p.add_argument("--probes-per-street", default=None, metavar="N",
                    help="place N probes on every street, whatever its length (instead of --spacing)")
+    p.add_argument("--crossings", action=argparse.BooleanOptionalAction, default=True,
+                   help="where streets meet, add a probe at the crossing's centre shared by them and record the "
+                        "crossings in the manifest (default on; docs/crossings.md)")
     add_city_arguments(p)
     p.set_defaults(func=run)
 
@@ -134,6 +137,7 @@ def bake_to_dir(args: argparse.Namespace, scene_name: str, out: str | os.PathLik
         path, ps = bake_to_directory(scene, out, exr=args.exr, previews=args.previews, writers=writers + scene_writer,
                                      report=report, resolution=args.resolution, spacing=args.spacing, height=args.height,
                                      quality=args.quality, sun_in_sky=args.sun_in_sky, verbose=not quiet, **placed,
+                                     crossings=bool(getattr(args, "crossings", False)),
                                      **({} if getattr(args, "ladder", "paper") == "paper" else {"ladder_mode": args.ladder}))
     n = ps.layer_count
     print(f"wrote {n} probes ({args.resolution}^2 x 6, {len(ps.levels)} levels) of '{scene.name}' to {path}"

@@ -19,6 +19,7 @@ from envcap.evaluate.occluder_report import (
 from envcap.evaluate.report import write_report
 from envcap.evaluate.result import EvaluationResult
 from envcap.evaluate.run import DEFAULT_LOBE_POWERS, evaluate_scene
+from envcap.evaluate.predict import CROSSING_MODE, CROSSING_MODES
 from envcap.evaluate.sweep import DEFAULT_SWEEP, Sweep
 from envcap.outputs import claim_output_dir
 from envcap.probeset.bake import bake_probe_set
@@ -59,6 +60,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help="instead: bake a probe set in memory on an M-meter segment around the middle of each street")
     p.add_argument("--probe-resolution", type=int, default=64, metavar="N", help="with --bake: probe face size (default 64)")
     p.add_argument("--spacing", type=float, default=5.0, metavar="M", help="with --bake: probe spacing (default 5)")
+    p.add_argument("--crossings", action="store_true",
+                   help="with --bake: add a probe at each crossing's centre and record the crossings (as envcap capture does)")
+    p.add_argument("--crossing-lookup", choices=list(CROSSING_MODES), default=CROSSING_MODE,
+                   help=f"positions inside a crossing of a set that records them: {CROSSING_MODE} (default: the street's "
+                        "probes with the crossing probe among them), probe (the crossing probe alone), plan (the meeting "
+                        "street whose probe is nearest in plan), off (per street); docs/crossings.md")
     p.add_argument("--out", required=True, type=Path, help="report directory (written atomically)")
     p.add_argument("--positions", type=int, default=DEFAULT_SWEEP.per_street, metavar="K",
                    help=f"evaluation positions per street (default {DEFAULT_SWEEP.per_street})")
@@ -171,9 +178,11 @@ def evaluate_one(name: str, args: argparse.Namespace, sweep: Sweep, methods: lis
     else:
         scene = street_segment(scene, args.bake)
         ps = bake_probe_set(scene, resolution=args.probe_resolution, spacing=args.spacing,
-                            report=BakeProgress(report.mode), progress=False if report.mode == "off" else None)
+                            report=BakeProgress(report.mode), progress=False if report.mode == "off" else None,
+                            crossings=bool(getattr(args, "crossings", False)))
     res = evaluate_scene(scene, ps, sweep=sweep, methods=methods, lobe_powers=args.lobes or DEFAULT_LOBE_POWERS,
-                         resolution=args.resolution, report=report)
+                         resolution=args.resolution, report=report,
+                         crossings=getattr(args, "crossing_lookup", CROSSING_MODE))
     if occluders is not None and getattr(args, "occluders", "none") != "none":
         occluders.append(evaluate_occluders(scene, ps, args.occluders, avatar=getattr(args, "avatar", None),
                                             resolution=args.resolution if args.resolution is not None else 64))

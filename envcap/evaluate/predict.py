@@ -4,7 +4,9 @@ Nothing here samples or blends on its own: each lookup is a registered runtime m
 (:mod:`envcap.runtime.methods`) on a runtime street, composited over the sky with
 :func:`envcap.runtime.sampling.composite`.  What the evaluator adds: the runtime street of each
 position is made of the :data:`LOCAL_PROBES` probes nearest to it (the runtime holds at most
-``MAX_PROBES`` per street; a long street has more), and a second sky chain (with the sun if the
+``MAX_PROBES`` per street; a long street has more), or, for a position inside a crossing of a set
+that records them (``Manifest.crossings``), of the crossing's probe alone (what the street map
+resolves a crossing to: :mod:`envcap.probeset.crossings`, docs/crossings.md), and a second sky chain (with the sun if the
 bake left it out, or without) so that both sky variants can be predicted.
 """
 
@@ -19,6 +21,7 @@ from envcap.core.lobes import LobeLadder
 from envcap.evaluate.truth import with_alpha
 from envcap.prefilter import prefilter_chain
 from envcap.prefilter.rungs import prefilter_rungs
+from envcap.probeset.crossings import corridor, crossing_of, meetings_of
 from envcap.probeset.probe_set import ProbeSet
 from envcap.runtime import methods
 from envcap.runtime.chains import ProbeChains, SkyChain
@@ -28,6 +31,13 @@ from envcap.runtime.street import RuntimeStreet, StreetProbes
 
 LOCAL_PROBES = 4
 """Probes of a street handed to the runtime twin per position (the nearest ones along it)."""
+
+CROSSING_MODES = ("probe", "shared", "plan", "off")
+"""How a position inside a crossing is looked up: ``probe`` the crossing probe alone, ``shared``
+the street's own :data:`LOCAL_PROBES` with the crossing probe among them, ``off`` per street."""
+
+CROSSING_MODE = "shared"
+"""The default (measured: docs/evaluation.md, "Crossings")."""
 
 
 class Predictor:
@@ -40,9 +50,12 @@ class Predictor:
     ``ctx``, the sky variant the bake did not store (with or without the sun) is filtered with the
     probe set's ladder, so that both ``sun=True`` and ``sun=False`` lookups work.  ``manifest``: the
     probe set's (its streets' grounds, e.g. :class:`envcap.evaluate.sweep.StreetExtent`).
+    ``crossings``: resolve positions inside a crossing to the crossing probe (``False``: per street,
+    as for a set without crossings).
     """
 
-    def __init__(self, probe_set: ProbeSet, sky: Any = None, ctx: Any = None, quality: str = "default") -> None:
+    def __init__(self, probe_set: ProbeSet, sky: Any = None, ctx: Any = None, quality: str = "default",
+                 crossings: bool | str = True) -> None:
         manifest = self.manifest = probe_set.manifest
         self.chains = ProbeChains.from_probe_set(probe_set)
         # The baked sky map holds the sun only when the manifest says so (bake default: no sun,
@@ -62,13 +75,65 @@ class Predictor:
             self.sky_levels[not self.baked_sun] = SkyChain(prefilter_chain(
                 with_alpha(sky.cube(ns, include_sun=not self.baked_sun)), lad, quality=quality, ctx=ctx, progress=False))
         self.streets = {st.name: StreetProbes.from_manifest(st) for st in manifest.streets}
+        self.crossing_mode = CROSSING_MODE if crossings is True else (crossings or "off")
+        if self.crossing_mode not in CROSSING_MODES:
+            raise ValueError(f"crossing lookup must be one of {CROSSING_MODES}, got {crossings!r}")
+        table = manifest.crossings if self.crossing_mode != "off" and manifest.crossings else ()
+        self.corridors = [corridor(st) for st in manifest.streets]
+        self.meetings = meetings_of(manifest.streets, table)
+        self.crossing_centres = [np.array(c.centre, np.float64) for c in table]   # world, m
+        self.crossing_probes: list[tuple[str, int]] = []   # per crossing: (owner street, index of its probe in StreetProbes)
+        for c in table:
+            sp = self.streets[c.streets[0]]
+            self.crossing_probes.append((c.streets[0], int(np.flatnonzero(sp.layers == c.probe_layer)[0])))
+
+    def crossing_at(self, x: ArrayLike) -> int:
+        """The index of the crossing (``Manifest.crossings``) whose region holds the world point ``x``
+        (3,) m; -1: none, or crossings off."""
+        if not self.meetings:
+            return -1
+        x = np.asarray(x, np.float64).reshape(3)
+        return int(crossing_of(self.corridors, self.meetings, x[[0, 2]]))
 
     def local_street(self, name: str, x: ArrayLike, planes: str = "nominal") -> RuntimeStreet:
         """The runtime street of the :data:`LOCAL_PROBES` probes nearest ``x`` along street ``name``
-        with the plane set ``planes``."""
+        with the plane set ``planes``; inside a crossing (:meth:`crossing_at`) as the crossing mode
+        says (:data:`CROSSING_MODES`): ``shared`` those probes with the crossing probe among them,
+        ``probe`` the crossing probe alone (its owner's frame and planes), ``plan`` the meeting street
+        whose probe is nearest to ``x`` in plan, as ``shared``."""
         if name not in self.streets:
             raise ValueError(f"probe set has no street named {name!r}")
+        k = self.crossing_at(x)
+        if k >= 0 and self.crossing_mode == "probe":
+            owner, i = self.crossing_probes[k]
+            return self.streets[owner].runtime_street(planes, [i])
+        if k >= 0 and self.crossing_mode == "shared":
+            return self._shared_street(name, k, x, planes)
+        if k >= 0 and self.crossing_mode == "plan":
+            cands = [self._shared_street(self.corridors[i].name, k, x, planes) for i in self.meetings[k].streets]
+            dist = [float(np.min(np.hypot(*(c.positions[:, [0, 2]] - c.to_frame(x)[[0, 2]]).T))) for c in cands]
+            return cands[int(np.argmin(dist))]
         return self.streets[name].local(x, LOCAL_PROBES, planes)
+
+    def _shared_street(self, name: str, k: int, x: NDArray[np.float64], planes: str) -> RuntimeStreet:
+        """Street ``name``'s local probes with crossing ``k``'s probe among them (the owner's own
+        probe; for another street, its position in this street's frame with the planes of this
+        street's probe nearest to it)."""
+        owner, i = self.crossing_probes[k]
+        sp = self.streets[name]
+        local = sp.local(x, LOCAL_PROBES, planes)
+        if owner == name or sp.yaw_deg != self.streets[owner].yaw_deg:
+            return local if owner == name else self.streets[owner].runtime_street(planes, [i])
+        layer = self.streets[owner].layers[i]
+        if np.any(local.layers == layer):
+            return local
+        pos = local.to_frame(self.crossing_centres[k])
+        nearest = int(np.argmin(np.abs(local.positions[:, sp.along] - pos[sp.along])))
+        pl, sl = local.planes[nearest], local.slopes[nearest]
+        order = np.argsort(np.concatenate([local.positions[:, sp.along], [pos[sp.along]]]), kind="stable")
+        return RuntimeStreet(sp.along, np.vstack([local.positions, pos])[order], np.vstack([local.planes, pl])[order],
+                             np.concatenate([local.layers, [layer]])[order], sp.yaw_deg, sp.origin_xz,
+                             np.concatenate([local.slopes, [sl]])[order])
 
     def sky_rgb(self, d: ArrayLike, w: ArrayLike, sun: bool | None = None) -> NDArray[np.float64]:
         """Sky ``(M, 4)`` at the original directions and the unshifted level ``z(w)``.

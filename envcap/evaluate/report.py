@@ -137,6 +137,14 @@ def _markdown(results: Sequence[EvaluationResult]) -> str:
         parts += [f"### By offset ({lobe_power_label(lp_b)}, {'sun out of the sky' if not sun_b else 'sun in the sky'}); "
                   "plane_misfit = share of the sphere where the three planes are the wrong model", "",
                   _md_table(["offset", "bin", "positions"] + meths, brows), ""]
+        inside = [r for r in res.rows if r.get("in_crossing")]
+        if inside:
+            nc = summarize(res.scene, inside)
+            crows = [[r["method"], lobe_power_label(r["lobe_power"]), "yes" if r["sun"] else "no", _fmt(r["rel_rmse"]),
+                      str(r["n_positions"])] for r in nc if r["lobe_power"] in (None, 64.0, 256.0)]
+            parts += [f"### Positions inside a crossing ({', '.join(res.meta.get('crossings') or [])}; lookup "
+                      f"`{res.meta.get('crossing_lookup')}`, docs/crossings.md)", "",
+                      _md_table(["method", "lobe", "sun", "mean rel. RMSE", "positions"], crows), ""]
         cr = [r for r in res.rows if r["near_crossing"]]
         if cr:
             nc = summarize(res.scene, cr)

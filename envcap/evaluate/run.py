@@ -166,6 +166,7 @@ class PositionEvaluator:
         ep = at.position
         x = np.array(ep.position)
         misfit = plane_misfit(x, at.capture.distance, at.capture.rgba[..., 3], self.predictor.local_street(ep.street, x))
+        in_crossing = self.predictor.crossing_at(x) >= 0
         t0 = time.perf_counter()
         rows = []
         for w, part in at.parts.items():
@@ -178,7 +179,7 @@ class PositionEvaluator:
                                  "lobe_power": lobe_power_key(w), "sun": sun,
                                  "rel_rmse": relative_rmse(self._prediction(st, m, w, sun, ep.yaw_deg), truth[sun]),
                                  "lateral_m": ep.lateral, "along_m": ep.along, "height_m": ep.height,
-                                 "near_crossing": ep.near_crossing, "plane_misfit": misfit,
+                                 "near_crossing": ep.near_crossing, "in_crossing": in_crossing, "plane_misfit": misfit,
                                  "position": list(ep.position)})
         self.timings["predictions_s"] += time.perf_counter() - t0
         return rows
@@ -253,6 +254,7 @@ def evaluate_scene(
     progress: bool | None = None,
     max_positions: int = MAX_POSITIONS,
     report: BakeProgress | None = None,
+    crossings: bool | str = True,
 ) -> EvaluationResult:
     """Evaluate the probe set ``probe_set`` of ``scene`` against fresh captures.
 
@@ -270,7 +272,9 @@ def evaluate_scene(
     truth face size and the memory are checked before any work (:mod:`envcap.evaluate.bounds`).
     ``report``: stages ``positions``, ``floor``, ``strips`` with positions done and positions/s
     (:class:`envcap.probeset.progress.BakeProgress`, as ``envcap evaluate`` prints them); without
-    it a tqdm bar on a terminal, as ``progress`` says.
+    it a tqdm bar on a terminal, as ``progress`` says.  ``crossings``: positions inside a crossing of a
+    set that records them are looked up through the crossing probe (:class:`Predictor`); ``False``:
+    per street.
     """
     t_all = time.perf_counter()
     settings = check_settings(scene, probe_set, methods, lobe_powers, sun_variants, resolution)
@@ -291,7 +295,8 @@ def evaluate_scene(
             ctx.release()
         raise
     t0 = time.perf_counter()
-    predictor = Predictor(probe_set, sky=truth.sky if False in settings.suns else None, ctx=ctx, quality=settings.quality)
+    predictor = Predictor(probe_set, sky=truth.sky if False in settings.suns else None, ctx=ctx, quality=settings.quality,
+                          crossings=crossings)
     t_setup = time.perf_counter() - t0
     ev = PositionEvaluator(settings, truth, predictor)
     rows: list[dict[str, Any]] = []
@@ -336,6 +341,8 @@ def evaluate_scene(
         r["scene"] = scene.name
     meta = _meta(scene.name, probe_set, settings, sweep if positions is None else None, len(pos_list), materials,
                  composite_rows)
+    meta["crossings"] = [c.name for c in probe_set.manifest.crossings or ()]
+    meta["crossing_lookup"] = predictor.crossing_mode if meta["crossings"] else None
     return EvaluationResult(scene.name, pos_list, rows, summarize(scene.name, rows), shading, times, meta,
                             floor=summarize(scene.name, floor_rows),
                             strips={"positions": kept, "key_method": key, "key_power": wkey})

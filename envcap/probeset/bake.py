@@ -40,10 +40,11 @@ from envcap.gpu.context import create_context
 from envcap.prefilter import prefilter_chain, prefilter_many
 from envcap.prefilter.rungs import rung_textures
 from envcap.probeset.bake_bounds import check_bake_cost, check_geometry, check_gl_limits, estimate_bake
+from envcap.probeset.crossings import Meeting, corridor, crossing_alongs, detect_crossings
 from envcap.probeset.half_range import check_half_range
 from envcap.probeset.ladder_table import LadderTable
-from envcap.probeset.manifest import LobeTable, Manifest, Probe, SceneInfo, SkyInfo, Street, SunInfo, Timings, level_table
-from envcap.probeset.placement import MAX_PROBES, check_along, place_probes, place_probes_at, probe_count
+from envcap.probeset.manifest import Crossing, LobeTable, Manifest, Probe, SceneInfo, SkyInfo, Street, SunInfo, Timings, level_table
+from envcap.probeset.placement import MAX_PROBES, ProbePlacement, check_along, place_probes, place_probes_at, probe_count
 from envcap.probeset.placement_table import PlacementTable
 from envcap.probeset.planes import Planes, fit_planes
 from envcap.probeset.probe_set import ProbeSet
@@ -162,6 +163,7 @@ def bake_probe_set(
     writers: Sequence[str] = (),
     along: Mapping[str, Sequence[float]] | None = None,
     placement: PlacementTable | None = None,
+    crossings: bool = False,
 ) -> ProbeSet:
     """Capture and filter the probes of every street of ``scene``.
 
@@ -183,6 +185,10 @@ def bake_probe_set(
     strictly increasing within the street: :func:`envcap.probeset.placement.place_probes_at`)
     instead of ``spacing``; the manifest's ``probe_spacing`` is then their mean spacing.
     ``placement``: how they were placed, recorded as the manifest's ``placement`` (``None``: omitted).
+    ``crossings``: where streets meet (:func:`envcap.probeset.crossings.detect_crossings`), add a
+    probe at each crossing's centre to its first street (none added where one already stands
+    within :data:`CROSSING_REUSE_M`) and record the crossings as the manifest's ``crossings``
+    (docs/crossings.md); ``False``: neither (the key is omitted).
 
     ``report``: stages and probes/s (:class:`envcap.probeset.progress.BakeProgress`: sky,
     capture, prefilter); without one the capture and filter show their own tqdm bars as
@@ -222,6 +228,11 @@ def bake_probe_set(
                   for st in scene.streets]
     positions = np.array([p.position for street in placements for p in street], dtype=np.float64)
     yaws = np.array([st.yaw_deg for st, street in zip(scene.streets, placements) for _ in street], dtype=np.float64)
+    cross_table: list[tuple[Meeting, int, int]] = []
+    if crossings:
+        placements, cross_table = _crossing_placements(scene, placements, height, spacing, terrain)
+        positions = np.array([p.position for street in placements for p in street], dtype=np.float64)
+        yaws = np.array([st.yaw_deg for st, street in zip(scene.streets, placements) for _ in street], dtype=np.float64)
     check_geometry(scene, positions)
     for line in street_setup_warnings(scene):
         print(f"envcap: warning: {line}", file=sys.stderr)
@@ -325,6 +336,10 @@ def bake_probe_set(
         probe_spacing=float(spacing),
         placement=placement,
         streets=tuple(streets),
+        crossings=None if not crossings else tuple(
+            Crossing("+".join(scene.streets[i].name for i in m.streets), streets[si].probes[pi].position,
+                     tuple(scene.streets[i].name for i in m.streets), streets[si].probes[pi].layer)
+            for m, si, pi in cross_table),
         effects=tuple(sorted(scene.effects)),
         passes_run=tuple(captured.passes_run),
         sky=SkyInfo(sky.spec(), sun=sun, sun_in_map=bool(sun_in_sky and sky.sun is not None)),
@@ -333,3 +348,32 @@ def bake_probe_set(
     )
     return ProbeSet(manifest=manifest, levels=levels, distance=captured.distance, sky_levels=sky_levels,
                     rungs=rungs, sky_rungs=sky_rungs)
+
+
+CROSSING_REUSE_M = 0.05
+"""A probe of the owning street this close (m, along it) to a crossing's centre is the crossing probe."""
+
+
+def _crossing_placements(scene: Scene, placements: list[list[ProbePlacement]], height: float, spacing: float,
+                         terrain: Any) -> tuple[list[list[ProbePlacement]], list[tuple[Meeting, int, int]]]:
+    """``placements`` with a probe at each crossing's centre on its first street, and per crossing
+    ``(meeting, street index, probe index in the street)``."""
+    meetings = detect_crossings(scene.streets)
+    cors = [corridor(st) for st in scene.streets]
+    adds = crossing_alongs(cors, meetings)
+    out = list(placements)
+    for i, extra in adds.items():
+        st = scene.streets[i]
+        have = np.array([st.to_frame(np.array(p.position))[st.along_index] for p in placements[i]])
+        new = [a for a in extra if not np.any(np.abs(have - a) <= CROSSING_REUSE_M)]
+        if new:
+            out[i] = place_probes_at(st, np.sort(np.concatenate([have, new])), height, ground_at=terrain,
+                                     slope_spacing=spacing)
+    table = []
+    for m in meetings:
+        i = m.streets[0]
+        st = scene.streets[i]
+        s = np.array([st.to_frame(np.array(p.position))[st.along_index] for p in out[i]])
+        a = cors[i].frame_of(np.array(m.centre))[0]
+        table.append((m, i, int(np.argmin(np.abs(s - a)))))
+    return out, table

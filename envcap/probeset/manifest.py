@@ -21,6 +21,7 @@ from typing import Any
 
 from envcap import __version__
 from envcap.core.street_frame import OptionalFrame, world_to_frame
+from envcap.probeset.crossing_table import Crossing, check_crossing_table
 from envcap.probeset.float32_range import check_number_ranges, positive_in_float32
 from envcap.probeset.json_codec import ManifestError, from_json, json_text, read_json_file, to_json
 from envcap.probeset.ladder_table import LadderTable, check_ladder_table
@@ -39,7 +40,7 @@ AXES = ("x", "z")
 
 __all__ = [
     "FORMAT", "VERSION", "CUBE_CONVENTION", "ManifestError", "ColorInfo", "Level", "LobeTable",
-    "Planes", "PerPlane", "FittedPlanes", "PlacementTable", "Probe", "Street", "SunInfo", "SkyInfo", "Files", "Timings", "SceneInfo",
+    "Planes", "PerPlane", "FittedPlanes", "PlacementTable", "Crossing", "Probe", "Street", "SunInfo", "SkyInfo", "Files", "Timings", "SceneInfo",
     "Manifest", "level_table", "check_manifest", "read_manifest", "write_manifest", "manifest_text", "dataclass_types",
 ]
 
@@ -216,6 +217,8 @@ class Manifest:
     ``probe_height``, ``probe_spacing`` in m (the mean spacing when ``placement`` is present);
     ``placement`` how the probes were placed (:mod:`envcap.probeset.placement_table`; ``None``:
     uniformly at ``probe_spacing``, omitted);
+    ``crossings`` where streets meet and the probe at each centre (:mod:`envcap.probeset.crossing_table`;
+    ``None``: no crossings recorded, omitted);
     ``effects`` the scene's capture effects and ``passes_run`` the capture passes run;
     ``scene`` (``None`` -> JSON ``{}``: unknown)."""
 
@@ -238,6 +241,7 @@ class Manifest:
     probe_spacing: float
     placement: PlacementTable | None = field(default=None, metadata=_OMIT)
     streets: tuple[Street, ...]
+    crossings: tuple[Crossing, ...] | None = field(default=None, metadata=_OMIT)  # crossing_table.py
     effects: tuple[str, ...] = ()
     passes_run: tuple[str, ...] = ()
     sky: SkyInfo
@@ -361,6 +365,8 @@ def check_manifest(m: Manifest, where: str = "manifest") -> int:
             layers.append(pr.layer)
     if m.placement is not None:
         check_placement_table(m.placement, [st.name for st in m.streets], where)
+    if m.crossings is not None:
+        check_crossing_table(m.crossings, {st.name: [pr.layer for pr in st.probes] for st in m.streets}, where)
     if sorted(layers) != list(range(len(layers))):
         raise ManifestError(f"{where}: probe layers must be 0..{len(layers) - 1}, each once; got {sorted(layers)}")
     return len(layers)
@@ -386,5 +392,5 @@ def write_manifest(path: str | os.PathLike[str], m: Manifest) -> Path:
 
 def dataclass_types() -> dict[str, type]:
     """The manifest's dataclasses by name (the ``$defs`` names of ``docs/manifest.schema.json``)."""
-    return {c.__name__: c for c in (Manifest, ColorInfo, Level, LobeTable, LadderTable, PlacementTable, Street, Probe,
+    return {c.__name__: c for c in (Manifest, ColorInfo, Level, LobeTable, LadderTable, PlacementTable, Crossing, Street, Probe,
                                     Planes, PerPlane, FittedPlanes, SkyInfo, SunInfo, Files, Timings, SceneInfo)}

@@ -168,7 +168,8 @@ o = vec4(envcap_sample_nearest(probes, sky, a.xyz, n, c.w, envcap_street)
 uvec4 range;
 vec3 local;
 uint id = envcap_city_locate(street_map, c.xy, c.z, frames, ranges, a.xyz, range, local);
-o = vec4(float(envcap_street_map_id(street_map, c.xy, c.z, a.xz) + id + range.w), local);"""),
+o = vec4(float(envcap_street_map_id(street_map, c.xy, c.z, a.xz) + id + range.w)
+         + float(envcap_street_map_crossing(id, range.x)), local);"""),
     "envcap_dynamic": RuntimeUnit(("runtime/envcap_dynamic.glsl",), "", """
 vec4 lobe = envcap_sphere_lobe(a.xyz, c);
 o = envcap_lobe_product(lobe.xyz, b.xyz, lobe.w, b.w) + envcap_occlusion(lobe.xyz, b.xyz, lobe.w, b.w);"""),

@@ -17,6 +17,13 @@ Where rectangles overlap (crossings, at any angle) the cell goes to the street w
 ``|across - center|``); exact ties go to the lower index.  A street that covers no cell centre
 (narrower than a cell) is an error, never dropped silently.
 
+Crossings (optional, :mod:`envcap.probeset.crossings`): with ``crossings`` (the set's meetings,
+``n`` streets), a cell whose centre lies in crossing ``k``'s region (where the corridors of two of
+its streets overlap; overlapping regions: the nearest centre) gets id ``n + 1 + k`` instead of a
+street's, so that one lookup tells a crossing from its streets: :func:`crossing_index` (GLSL
+``envcap_street_map_crossing``) gives ``k`` (-1 for a street or none).  The crossing's probe and
+streets are ``Manifest.crossings[k]`` (docs/crossings.md).  A map without crossings is unchanged.
+
 Lookup (:meth:`StreetMap.lookup`, GLSL ``envcap_street_map_id``), in float32 like the GPU:
 ``u = floor((p - origin) * inv_cell)`` with ``p = (x, z)``, ``origin`` and ``inv_cell = 1 / cell``
 rounded to float32; the id of cell ``u`` when ``0 <= u < (columns, rows)``, else 0 (outside the
@@ -54,6 +61,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from envcap.core.street_frame import world_to_frame, yaw_cos_sin
 from envcap.probeset.city_index import street_bounds
+from envcap.probeset.crossings import Meeting, corridor, crossing_of
 from envcap.probeset.manifest import Street
 
 MAX_STREETS = 65535      # uint16 ids, 0 reserved for "no street"
@@ -112,19 +120,30 @@ class StreetMap:
         return out
 
 
+def crossing_index(ids: ArrayLike, street_count: int) -> NDArray[np.int64]:
+    """Per street-map id: the crossing index ``k`` (id ``street_count + 1 + k``), -1 for a street or
+    none; the numpy twin of GLSL ``envcap_street_map_crossing``."""
+    i = np.asarray(ids, np.int64)
+    return np.where(i > street_count, i - street_count - 1, -1)
+
+
 def street_map(streets: Sequence[Street], cell: float, *, origin: tuple[float, float] | None = None,
-               size: tuple[int, int] | None = None) -> StreetMap:
+               size: tuple[int, int] | None = None, crossings: Sequence[Meeting] = ()) -> StreetMap:
     """Rasterize ``streets`` (a manifest's ``streets``, id = index + 1, at any angle) into a
     :class:`StreetMap` of ``cell`` meters (rule: the module docstring).  By default the grid is
     the smallest one on multiples of ``cell`` that holds every street's world box
     (:func:`envcap.probeset.city_index.street_bounds`); ``origin`` (x, z) and ``size`` (columns,
-    rows) set it instead.  Each street is tested on the cells of its world box only.  A grid past
+    rows) set it instead.  Each street is tested on the cells of its world box only.  ``crossings``:
+    the meetings of ``streets`` (:func:`envcap.probeset.crossings.detect_crossings`, or
+    :func:`envcap.probeset.crossings.meetings_of` a manifest's table), rasterized over the streets'
+    cells as ids ``len(streets) + 1 + k`` (module docstring).  A grid past
     :data:`MAX_MAP_SIZE` texels per side is a ``ValueError`` (naming ``--map-cell`` and the smallest
     cell that fits) before anything is allocated."""
     if not streets:
         raise ValueError("a street map needs at least one street")
-    if len(streets) > MAX_STREETS:
-        raise ValueError(f"{len(streets)} streets do not fit in uint16 ids (at most {MAX_STREETS})")
+    if len(streets) + len(crossings) > MAX_STREETS:
+        raise ValueError(f"{len(streets)} streets and {len(crossings)} crossings do not fit in uint16 ids "
+                         f"(at most {MAX_STREETS})")
     if not (math.isfinite(cell) and cell > 0):
         raise ValueError(f"cell must be a positive finite size in meters, got {cell}")
     boxes = np.array([street_bounds(st) for st in streets], dtype=np.float64)
@@ -158,7 +177,39 @@ def street_map(streets: Sequence[Street], cell: float, *, origin: tuple[float, f
         take = covered & (dist < win_best)                 # strict: ties stay with the lower index
         win_best[take] = dist[take]
         win_ids[take] = k + 1
+    if crossings:
+        _rasterize_crossings(ids, streets, boxes, crossings, cx, cz, cell)
     return StreetMap(ids=ids, origin=(float(origin[0]), float(origin[1])), cell=float(cell))
+
+
+def _rasterize_crossings(ids: NDArray[np.uint16], streets: Sequence[Street], boxes: NDArray[np.float64],
+                         crossings: Sequence[Meeting], cx: NDArray[np.float64], cz: NDArray[np.float64], cell: float) -> None:
+    """Write crossing ids into ``ids`` (in place): each crossing tested on the cells of the world box
+    of its region (the union of its streets' pairwise box overlaps), nearest centre first."""
+    n = len(streets)
+    bad = [m.streets for m in crossings if len(m.streets) < 2 or not all(0 <= i < n for i in m.streets)]
+    if bad:
+        raise ValueError(f"crossings name streets {bad[0]} of a map of {n} streets (need two or more of them)")
+    cors = [corridor(st) for st in streets]
+    best = np.full(ids.shape, np.inf)
+    for k, m in enumerate(crossings):
+        b = boxes[list(m.streets)]
+        pairs = [(max(p[0], q[0]), min(p[1], q[1]), max(p[2], q[2]), min(p[3], q[3]))
+                 for a, p in enumerate(b) for q in b[a + 1:]]
+        pairs = [w for w in pairs if w[0] <= w[1] and w[2] <= w[3]]
+        if not pairs:
+            continue
+        x0, x1 = min(w[0] for w in pairs), max(w[1] for w in pairs)
+        z0, z1 = min(w[2] for w in pairs), max(w[3] for w in pairs)
+        i0, i1 = np.searchsorted(cx, [x0 - cell, x1 + cell])
+        j0, j1 = np.searchsorted(cz, [z0 - cell, z1 + cell])
+        X, Z = np.meshgrid(cx[i0:i1], cz[j0:j1])
+        inside = crossing_of(cors, [m], np.stack([X, Z], axis=-1)) == 0
+        dist = np.hypot(X - m.centre[0], Z - m.centre[1])
+        win_best, win_ids = best[j0:j1, i0:i1], ids[j0:j1, i0:i1]     # views
+        take = inside & (dist < win_best)                            # strict: ties stay with the lower index
+        win_best[take] = dist[take]
+        win_ids[take] = n + 1 + k
 
 
 def _check_map_size(size: tuple[float, float], cell: float, extent_x: float, extent_z: float) -> None:

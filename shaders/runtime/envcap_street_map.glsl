@@ -16,6 +16,12 @@ uint envcap_street_map_id(usampler2D street_map, vec2 origin, float inv_cell, ve
     return texelFetch(street_map, ivec2(u), 0).r;
 }
 
+// The crossing an id of a map rasterized with crossings names (ids street_count + 1 + k, docs/crossings.md):
+// k, or -1 for a street or none (numpy twin: envcap.runtime.street_map.crossing_index).
+int envcap_street_map_crossing(uint id, uint street_count) {
+    return id > street_count ? int(id - street_count) - 1 : -1;
+}
+
 // Texel i of a table stored row by row, as wide as the texture (StreetTable.textures()).
 ivec2 envcap_table_texel(int i, int width) {
     return ivec2(i % width, i / width);

@@ -31,7 +31,9 @@ def test_uniform_per_street_count_and_the_default(tmp_path, capsys):
     m = json.loads((tmp_path / "a" / "manifest.json").read_text())
     assert m["placement"] == {"strategy": "uniform", "probes_per_street": 2, "parameters": {"spacing_m": None},
                               "seconds": m["placement"]["seconds"], "streets": {}}
-    assert [[p["position"][0 if s["axis"] == "x" else 2] for p in s["probes"]] for s in m["streets"]] == [[-75.0, 75.0]] * 2
+    # the placement's 2 per street, and the crossing's centre probe on its first street (docs/crossings.md)
+    assert [[p["position"][0 if s["axis"] == "x" else 2] for p in s["probes"]] for s in m["streets"]] == \
+        [[-75.0, 0.0, 75.0], [-75.0, 75.0]]
     assert main(["capture", "crossing", "--out", str(tmp_path / "b"), "--resolution", "8", "--quiet",
                  "--spacing", "100"]) == 0
     assert "placement" not in json.loads((tmp_path / "b" / "manifest.json").read_text())
