@@ -79,19 +79,25 @@ STATICS = ("probes", "oracle")
 @dataclass(frozen=True)
 class TermConfig:
     """The runtime's choices for the dynamic terms: ``cap`` spheres per point (``0``: every sphere
-    of the buffer) and the union ``rule`` (:data:`envcap.dynamic.spheres.CombineRule`)."""
+    of the buffer), the union ``rule`` (:data:`envcap.dynamic.spheres.CombineRule`) and
+    ``self_scale``, a factor on the radii of a vertex's own blocker spheres (1: the proxy spheres
+    as fitted)."""
 
     cap: int = SPHERE_CAP
     rule: str = DEFAULT_RULE
+    self_scale: float = 1.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.cap, int) or self.cap < 0:
             raise ValueError(f"sphere cap must be an integer >= 0 (0: all), got {self.cap!r}")
         check_rule(self.rule)
+        if not (math.isfinite(self.self_scale) and 0 < self.self_scale <= 2):
+            raise ValueError(f"self sphere scale must be in (0, 2], got {self.self_scale!r}")
 
     @property
     def label(self) -> str:
-        return f"cap {self.cap or 'all'}, {self.rule}"
+        scale = f", self radii x{self.self_scale:g}" if self.self_scale != 1 else ""
+        return f"cap {self.cap or 'all'}, {self.rule}{scale}"
 
     def cap_for(self, spheres: SphereBuffer) -> int:
         """The cap to pass for ``spheres`` (all of them when ``cap`` is 0)."""
@@ -132,11 +138,12 @@ def site_avatars(site: CrowdSite, ground: Any, path: str) -> list[PosedAvatar]:
     return out
 
 
-def self_spheres(host: PosedAvatar, blockers: Blockers, vertex: int) -> SphereBuffer:
-    """The posed spheres of the blocker bones of ``vertex`` of ``host`` (those with a score > 0)."""
+def self_spheres(host: PosedAvatar, blockers: Blockers, vertex: int, scale: float = 1.0) -> SphereBuffer:
+    """The posed spheres of the blocker bones of ``vertex`` of ``host`` (those with a score > 0),
+    radii times ``scale``."""
     j = blockers.joints[vertex][blockers.scores[vertex] > 0]
     j = j[host.bone_radii[j] > 0]
-    return SphereBuffer(host.bone_centers[j], host.bone_radii[j], np.tile(host.albedo, (len(j), 1)))
+    return SphereBuffer(host.bone_centers[j], scale * host.bone_radii[j], np.tile(host.albedo, (len(j), 1)))
 
 
 def joined(*buffers: SphereBuffer) -> SphereBuffer:
@@ -152,7 +159,8 @@ def evaluation_points(site: CrowdSite, host: PosedAvatar, ground: Any, self_coun
     ``host``) and free points."""
     out: list[tuple[str, int, NDArray[np.float64], NDArray[np.float64] | None]] = []
     root_y = ground(np.array([site.host.root_xz[0], 0.0, site.host.root_xz[1]]))
-    for v in self_vertices(host.mesh.positions, host.mesh.normals, root_y, self_count, site.seed):
+    for v in self_vertices(host.mesh.positions, host.mesh.normals, host.mesh.triangles, root_y, self_count, site.seed,
+                           SELF_OFFSET_M):
         n = np.asarray(host.mesh.normals[v], np.float64)
         n = n / np.linalg.norm(n)
         out.append(("self", int(v), np.asarray(host.mesh.positions[v], np.float64) + SELF_OFFSET_M * n, n))
@@ -211,13 +219,20 @@ def evaluate_crowd_accuracy(scene: Any, predictor: Predictor, street: str, cente
             for pi, ((kind, vertex, x, nrm), plain, withc, oracle) in enumerate(zip(points, plains, withs, oracles)):
                 if kind == "self":
                     frames, views = normal_frames(nrm)
-                    own = self_spheres(avatars[0], blockers, vertex)
                     others = lod_spheres(x, avatars[1:])[0]
-                    bufs = {"+self": own, "+self+neighbours": joined(own, others)}
+
+                    def buffers(cfg: TermConfig, vertex: int = vertex, others: SphereBuffer = others
+                                ) -> dict[str, SphereBuffer]:
+                        own = self_spheres(avatars[0], blockers, vertex, cfg.self_scale)
+                        return {"+self": own, "+self+neighbours": joined(own, others)}
                 else:
                     frames, views = street_frames
-                    bufs = {"+neighbours": lod_spheres(x, avatars)[0]}
+                    crowd = lod_spheres(x, avatars)[0]
+
+                    def buffers(cfg: TermConfig, crowd: SphereBuffer = crowd) -> dict[str, SphereBuffer]:
+                        return {"+neighbours": crowd}
                 last = TERMS[kind][-1]
+                per_config = [buffers(cfg) for cfg in configs]
                 truth_env = exact_environment(composite(withc.rgba.astype(np.float64), sky_rgba))
 
                 def probes(dd: NDArray, w: NDArray, x: NDArray = x) -> NDArray:
@@ -225,14 +240,14 @@ def evaluate_crowd_accuracy(scene: Any, predictor: Predictor, street: str, cente
                         dd.shape[:-1] + (3,))
                 base = {"site": si, "density": float(d), "neighbours": len(site.neighbours), "area": site.area,
                         "kind": kind, "point": pi, "vertex": vertex, "xyz": [float(v) for v in x],
-                        "sky_hidden": visible_sky_hidden(plain.rgba, withc.rgba), "spheres": len(bufs[last])}
+                        "sky_hidden": visible_sky_hidden(plain.rgba, withc.rgba), "spheres": len(per_config[0][last])}
                 for mat in materials:
                     truth = shade(truth_env, mat, frames, views)
                     for sname, senv in (("probes", probes), ("oracle", oracle)):
                         row = {**base, "static": sname, "material": mat.name}
                         rows.append({**row, "term": "probes", "config": configs[0].label,
                                      "rel_err": rel_err(shade(senv, mat, frames, views), truth)})
-                        for ci, cfg in enumerate(configs):
+                        for ci, (cfg, bufs) in enumerate(zip(configs, per_config)):
                             for term, buf in bufs.items():
                                 if ci > 0 and term != last:
                                     continue

@@ -168,18 +168,58 @@ def place_crowd(center: ArrayLike, density: float, *, heading_deg: float, span: 
                      np.array(free, np.float64).reshape(-1, 2), d, float(radius), area, int(seed))
 
 
-def self_vertices(positions: ArrayLike, normals: ArrayLike, ground: float, count: int, seed: int,
-                  low: float = 0.3, high: float = 1.7) -> NDArray[np.int64]:
+def inside_body(origin: ArrayLike, direction: ArrayLike, positions: ArrayLike, normals: ArrayLike,
+                triangles: ArrayLike) -> bool:
+    """Whether the point ``origin`` (3,) m is inside the closed parts of a mesh: the first triangle
+    that the ray along ``direction`` (3,) hits (float64 Moller-Trumbore, both faces) faces away from
+    the ray's origin (its outward side, the mean of its vertex ``normals``, along the ray: the ray
+    leaves a body).  No hit: outside."""
+    o, d = np.asarray(origin, np.float64), np.asarray(direction, np.float64)
+    p, nv = np.asarray(positions, np.float64), np.asarray(normals, np.float64)
+    tri = np.asarray(triangles, np.int64)
+    a, b, c = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
+    e1, e2 = b - a, c - a
+    q = np.cross(d, e2)
+    det = np.einsum("tk,tk->t", e1, q)
+    ok = np.abs(det) > 1e-15
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = o - a
+    u = np.einsum("tk,tk->t", s, q) * inv
+    r = np.cross(s, e1)
+    v = (r @ d) * inv
+    t = np.einsum("tk,tk->t", e2, r) * inv
+    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9)
+    if not hit.any():
+        return False
+    first = int(np.argmin(np.where(hit, t, np.inf)))
+    outward = nv[tri[first]].sum(axis=0)
+    return bool(outward @ d > 0)
+
+
+def self_vertices(positions: ArrayLike, normals: ArrayLike, triangles: ArrayLike, ground: float, count: int,
+                  seed: int, offset: float = 0.02, low: float = 0.3, high: float = 1.7) -> NDArray[np.int64]:
     """``count`` distinct vertex indices of a posed avatar (``positions``, ``normals`` ``(V, 3)``
-    world m) drawn uniformly (seeded) among those ``low`` .. ``high`` m above ``ground`` (m) with a
-    non-degenerate normal: where a self point stands (the feet and the top of the head left out)."""
+    world m, ``triangles`` ``(T, 3)``) drawn uniformly (seeded) among the vertices ``low`` ..
+    ``high`` m above ``ground`` (m) with a non-degenerate normal whose point ``offset`` m along the
+    normal is not inside another part of the body (:func:`inside_body` along the normal: a
+    capsule's end buried in the next one is never seen): where a self point stands (the feet and
+    the top of the head left out)."""
     p = np.asarray(positions, np.float64)
     n = np.asarray(normals, np.float64)
-    ok = np.flatnonzero((p[:, 1] - ground >= low) & (p[:, 1] - ground <= high) & (np.linalg.norm(n, axis=1) > 1e-6))
-    if count > len(ok):
-        raise ValueError(f"asked for {count} self points, the avatar has {len(ok)} vertices {low:g}-{high:g} m up")
+    length = np.linalg.norm(n, axis=1)
+    ok = np.flatnonzero((p[:, 1] - ground >= low) & (p[:, 1] - ground <= high) & (length > 1e-6))
     rng = np.random.default_rng((int(seed), 2))
-    return np.sort(rng.choice(ok, size=count, replace=False)).astype(np.int64)
+    out: list[int] = []
+    for v in rng.permutation(ok):
+        if len(out) == count:
+            break
+        unit = n[v] / length[v]
+        if not inside_body(p[v] + offset * unit, unit, p, n, triangles):
+            out.append(int(v))
+    if len(out) < count:
+        raise ValueError(f"asked for {count} self points, the avatar has {len(out)} visible vertices "
+                         f"{low:g}-{high:g} m up")
+    return np.sort(np.array(out, np.int64))
 
 
 def street_inside(extent: object, margin: float = 0.5) -> Inside:
