@@ -42,6 +42,7 @@ from envcap.capture.renderer import CubeCapture
 from envcap.core.checks import positive_int
 from envcap.dynamic.avatar_blockers import Blockers, select_blockers
 from envcap.dynamic.spheres import DEFAULT_RULE, SPHERE_CAP, SphereBuffer, check_rule
+from envcap.dynamic.terms import dynamic_terms
 from envcap.evaluate.crowd_placement import (
     DENSITIES,
     FREE_HEIGHT_M,
@@ -51,15 +52,24 @@ from envcap.evaluate.crowd_placement import (
     place_crowd,
     self_vertices,
 )
-from envcap.evaluate.dynamic_avatars import PosedAvatar, load_rigged, lod_spheres, pose_avatar, walker_path
+from envcap.dynamic.crowd_lod import AvatarSphere
+from envcap.evaluate.dynamic_avatars import (
+    PosedAvatar,
+    load_rigged,
+    lod_spheres,
+    pose_avatar,
+    walker_path,
+    yaw_matrix,
+)
 from envcap.evaluate.dynamic_occluders import ALBEDOS, rel_err, upper_sky, visible_sky_hidden
-from envcap.evaluate.dynamic_terms import shade_model
+from envcap.evaluate.dynamic_terms import MODELS, clamped, lafortune
 from envcap.evaluate.predict import Predictor
 from envcap.evaluate.shading import MATERIALS, Material, exact_environment, shade, shading_frames
 from envcap.evaluate.sweep import street_extent
 from envcap.evaluate.truth import with_alpha
 from envcap.runtime.sampling import composite
-from envcap.scene.extra_meshes import with_meshes
+from envcap.runtime.shading import EnvironmentFn
+from envcap.scene.extra_meshes import ExtraMesh, with_meshes
 
 MODEL = "envcap"
 """The dynamic-terms model evaluated."""
@@ -128,13 +138,22 @@ def normal_frames(normal: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.fl
 
 def site_avatars(site: CrowdSite, ground: Any, path: str) -> list[PosedAvatar]:
     """The walkers of ``site`` posed (host first), each on ``ground(root)`` m; albedos alternate
-    over :data:`ALBEDOS`."""
+    over :data:`ALBEDOS`.  Each phase is posed once (:func:`pose_avatar` at the origin) and moved
+    rigidly: the skin, the bone spheres and the one sphere turn and translate with the walker."""
     avatar, proxies = load_rigged(path)
+    poses: dict[float, PosedAvatar] = {}
     out = []
     for i, w in enumerate(site.walkers):
+        if w.time not in poses:
+            poses[w.time] = pose_avatar(avatar, proxies, (0.0, 0.0, 0.0), 0.0, w.time)
+        p0 = poses[w.time]
         root = np.array([w.root_xz[0], 0.0, w.root_xz[1]])
         root[1] = ground(root)
-        out.append(pose_avatar(avatar, proxies, root, w.yaw_deg, w.time, ALBEDOS[i % len(ALBEDOS)]))
+        rot = yaw_matrix(w.yaw_deg)
+        albedo = ALBEDOS[i % len(ALBEDOS)]
+        mesh = ExtraMesh(p0.mesh.positions @ rot.T + root, p0.mesh.normals @ rot.T, p0.mesh.triangles, albedo)
+        one = AvatarSphere(p0.one.center @ rot.T + root, p0.one.radius, p0.one.enclosing)
+        out.append(PosedAvatar(mesh, p0.bone_centers @ rot.T + root, p0.bone_radii, one, albedo))
     return out
 
 
@@ -151,6 +170,31 @@ def joined(*buffers: SphereBuffer) -> SphereBuffer:
     return SphereBuffer(np.concatenate([b.centers.reshape(-1, 3) for b in buffers]),
                         np.concatenate([b.radii.reshape(-1) for b in buffers]),
                         np.concatenate([b.albedo.reshape(-1, 3) for b in buffers]))
+
+
+def animation_phases(avatar: Any) -> tuple[float, ...]:
+    """The distinct keyframe times (s) of the avatar's first animation, a loop's end left out
+    (it repeats the start); ``(0.0,)`` without an animation."""
+    if not avatar.animations or not len(avatar.animations[0].keyframes):
+        return (0.0,)
+    keys = np.asarray(avatar.animations[0].keyframes, np.float64)
+    return tuple(float(t) for t in (keys[:-1] if len(keys) > 1 else keys))
+
+
+def lit_crowd(alone: dict[str, NDArray], statics: dict[str, EnvironmentFn], light: EnvironmentFn, x: ArrayLike,
+              frames: NDArray, views: NDArray, mat: Material, spheres: SphereBuffer,
+              config: TermConfig) -> dict[str, NDArray[np.float64]]:
+    """Per static part, Eq. 3 radiance ``(F, 3)`` with the dynamic terms of ``spheres`` under
+    ``config``: ``alone[name] - blocked(static) + bounced(light)`` (the model :data:`MODEL`, as
+    :func:`envcap.evaluate.dynamic_terms.shade_model`; the bounced light, lit by ``light``, is
+    computed once for every static part)."""
+    m = MODELS[MODEL]
+    laf = lafortune(mat)
+    xs = np.broadcast_to(np.asarray(x, np.float64), frames.shape[:-2] + (3,))
+    opts = {"form": m.form, "bounce": m.bounce, "cap": config.cap_for(spheres), "rule": config.rule}
+    bounced = dynamic_terms(xs, frames, views, laf, spheres, clamped(light), **opts).bounced  # type: ignore[arg-type]
+    return {k: alone[k] - dynamic_terms(xs, frames, views, laf, spheres, clamped(env), **opts).blocked  # type: ignore[arg-type]
+            + bounced for k, env in statics.items()}
 
 
 def evaluation_points(site: CrowdSite, host: PosedAvatar, ground: Any, self_count: int,
@@ -191,7 +235,7 @@ def evaluate_crowd_accuracy(scene: Any, predictor: Predictor, street: str, cente
     path = str(avatar_path if avatar_path is not None else walker_path())
     avatar, _ = load_rigged(path)
     blockers = avatar_blockers(path)
-    span = float(avatar.animations[0].keyframes[-1]) if avatar.animations else 0.0
+    phases = animation_phases(avatar)
     extent = street_extent(predictor.manifest, street)
     heading = (90.0 if extent.along == 0 else 0.0) - extent.yaw_deg
     sky = scene.sky.build()
@@ -205,14 +249,14 @@ def evaluate_crowd_accuracy(scene: Any, predictor: Predictor, street: str, cente
             return [cap.capture(p) for p in pts]
 
     for si, c in enumerate(centers):
-        base_site = place_crowd(c, 0.0, heading_deg=heading, span=span, seed=seed + si, radius=radius,
+        base_site = place_crowd(c, 0.0, heading_deg=heading, phases=phases, seed=seed + si, radius=radius,
                                 free_points=free_count, inside=inside)
         host = site_avatars(base_site, extent.ground_under, path)[0]
         points = evaluation_points(base_site, host, extent.ground_under, self_count)
         plains = captures(scene, [p for _, _, p, _ in points])
         oracles = [exact_environment(composite(pl.rgba.astype(np.float64), sky_rgba)) for pl in plains]
         for d in densities:
-            site = place_crowd(c, d, heading_deg=heading, span=span, seed=seed + si, radius=radius,
+            site = place_crowd(c, d, heading_deg=heading, phases=phases, seed=seed + si, radius=radius,
                                free_points=free_count, inside=inside)
             avatars = site_avatars(site, extent.ground_under, path)
             withs = captures(with_meshes(scene, [a.mesh for a in avatars]), [p for _, _, p, _ in points])
@@ -238,22 +282,24 @@ def evaluate_crowd_accuracy(scene: Any, predictor: Predictor, street: str, cente
                 def probes(dd: NDArray, w: NDArray, x: NDArray = x) -> NDArray:
                     return predictor.predict(method, street, x, dd.reshape(-1, 3), np.ravel(w), False).reshape(
                         dd.shape[:-1] + (3,))
+                statics = {"probes": probes, "oracle": oracle}
                 base = {"site": si, "density": float(d), "neighbours": len(site.neighbours), "area": site.area,
                         "kind": kind, "point": pi, "vertex": vertex, "xyz": [float(v) for v in x],
                         "sky_hidden": visible_sky_hidden(plain.rgba, withc.rgba), "spheres": len(per_config[0][last])}
                 for mat in materials:
                     truth = shade(truth_env, mat, frames, views)
-                    for sname, senv in (("probes", probes), ("oracle", oracle)):
-                        row = {**base, "static": sname, "material": mat.name}
-                        rows.append({**row, "term": "probes", "config": configs[0].label,
-                                     "rel_err": rel_err(shade(senv, mat, frames, views), truth)})
-                        for ci, (cfg, bufs) in enumerate(zip(configs, per_config)):
-                            for term, buf in bufs.items():
-                                if ci > 0 and term != last:
-                                    continue
-                                pred = shade_model(MODEL, senv, light, x, frames, views, mat, buf,
-                                                   cap=cfg.cap_for(buf), rule=cfg.rule)  # type: ignore[arg-type]
-                                rows.append({**row, "term": term, "config": cfg.label, "rel_err": rel_err(pred, truth)})
+                    alone = {k: shade(env, mat, frames, views) for k, env in statics.items()}
+                    for sname in statics:
+                        rows.append({**base, "static": sname, "material": mat.name, "term": "probes",
+                                     "config": configs[0].label, "rel_err": rel_err(alone[sname], truth)})
+                    for ci, (cfg, bufs) in enumerate(zip(configs, per_config)):
+                        for term, buf in bufs.items():
+                            if ci > 0 and term != last:
+                                continue
+                            preds = lit_crowd(alone, statics, light, x, frames, views, mat, buf, cfg)
+                            for sname, pred in preds.items():
+                                rows.append({**base, "static": sname, "material": mat.name, "term": term,
+                                             "config": cfg.label, "rel_err": rel_err(pred, truth)})
     return rows
 
 

@@ -15,14 +15,15 @@ compare the same points.
 :data:`SPACING_M` from every other walker's, :data:`HOST_CLEARANCE_M` from the host's and
 :data:`POINT_CLEARANCE_M` from each free point (horizontal distances: no point inside a body);
 headings along the street (``heading_deg``, the yaw that faces +along, or the opposite, equally
-likely) turned by up to :data:`HEADING_JITTER_DEG`; phases uniform over the animation's span.
+likely) turned by up to :data:`HEADING_JITTER_DEG`; phases drawn uniformly from the given
+keyframe times.
 Too dense to place: ``ValueError``.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,26 +115,30 @@ def _disc_sample(rng: np.random.Generator, center: NDArray, radius: float) -> ND
     return center + r * np.array([math.cos(a), math.sin(a)])
 
 
-def _walker(rng: np.random.Generator, xz: NDArray, heading_deg: float, span: float) -> Walker:
+def _walker(rng: np.random.Generator, xz: NDArray, heading_deg: float, phases: tuple[float, ...]) -> Walker:
     yaw = heading_deg + (180.0 if rng.random() < 0.5 else 0.0) + HEADING_JITTER_DEG * (2 * rng.random() - 1)
-    return Walker((float(xz[0]), float(xz[1])), float(yaw % 360.0), float(span * rng.random()) if span > 0 else 0.0)
+    return Walker((float(xz[0]), float(xz[1])), float(yaw % 360.0), float(phases[int(rng.integers(len(phases)))]))
 
 
-def place_crowd(center: ArrayLike, density: float, *, heading_deg: float, span: float, seed: int,
+def place_crowd(center: ArrayLike, density: float, *, heading_deg: float, phases: Sequence[float], seed: int,
                 radius: float = RADIUS_M, free_points: int = 2, inside: Inside | None = None) -> CrowdSite:
     """The site about ``center`` (3,) m at ``density`` walkers per m^2 (module docstring).
-    ``heading_deg``: the yaw of the street's +along direction; ``span``: the animation's length
-    (s; 0: every walker at time 0); ``seed``: the placement's seed (the host and free points use
+    ``heading_deg``: the yaw of the street's +along direction; ``phases``: the animation times (s)
+    a walker is posed at, one drawn per walker (the keyframes: every pose is then one of a few);
+    ``seed``: the placement's seed (the host and free points use
     ``(seed, 0)``, the neighbours ``(seed, 1, density in 1/1000 walkers per m^2)``)."""
     d = check_density(density)
     if not (math.isfinite(radius) and radius > 1.0):
         raise ValueError(f"crowd radius must be a finite number > 1 m, got {radius!r}")
     if free_points < 0:
         raise ValueError(f"free points must be >= 0, got {free_points}")
+    keys = tuple(float(t) for t in phases)
+    if not keys or not all(math.isfinite(t) for t in keys):
+        raise ValueError(f"walker phases must be finite times in s, at least one, got {phases!r}")
     c3 = np.asarray(center, np.float64).reshape(3)
     c = c3[[0, 2]]
     site_rng = np.random.default_rng((int(seed), 0))
-    host = _walker(site_rng, c, heading_deg, span)
+    host = _walker(site_rng, c, heading_deg, keys)
     free: list[NDArray] = []
     for _ in range(MAX_TRIES * max(free_points, 1)):
         if len(free) == free_points:
@@ -163,7 +168,7 @@ def place_crowd(center: ArrayLike, density: float, *, heading_deg: float, span: 
         if np.min(np.hypot(*(np.asarray(feet) - p).T)) < SPACING_M:
             continue
         feet.append(p)
-        out.append(_walker(rng, p, heading_deg, span))
+        out.append(_walker(rng, p, heading_deg, keys))
     return CrowdSite((float(c3[0]), float(c3[1]), float(c3[2])), host, tuple(out),
                      np.array(free, np.float64).reshape(-1, 2), d, float(radius), area, int(seed))
 

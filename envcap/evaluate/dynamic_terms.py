@@ -27,7 +27,7 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from envcap.dynamic.spheres import DEFAULT_RULE, SPHERE_CAP, CombineRule, SphereBuffer
+from envcap.dynamic.spheres import SphereBuffer
 from envcap.dynamic.terms import dynamic_terms
 from envcap.evaluate.shading import Material
 from envcap.runtime.lafortune import Lafortune
@@ -80,19 +80,17 @@ def clamped(env: EnvironmentFn) -> EnvironmentFn:
 
 
 def model_terms(model: str, static_env: EnvironmentFn, light_env: EnvironmentFn | None, x: ArrayLike, frames: NDArray,
-                views: NDArray, mat: Lafortune, spheres: SphereBuffer, *, cap: int = SPHERE_CAP,
-                rule: CombineRule = DEFAULT_RULE) -> tuple[NDArray, NDArray]:
+                views: NDArray, mat: Lafortune, spheres: SphereBuffer) -> tuple[NDArray, NDArray]:
     """``(blocked, bounced)`` ``(F, 3)`` of ``model`` for shading frames ``(F, 3, 3)`` (rows T, B,
     N) and local views ``(F, 3)`` at the point ``x`` (3,) m.  ``light_env``: the sky light (needed
-    by models with ``light="sky"``); ``cap``, ``rule``: spheres per point and how their caps
-    combine (:func:`envcap.dynamic.terms.dynamic_terms`)."""
+    by models with ``light="sky"``)."""
     if model not in MODELS:
         raise ValueError(f"unknown dynamic model {model!r}; known: {', '.join(MODELS)}")
     m = MODELS[model]
     if m.light == "sky" and light_env is None:
         raise ValueError(f"model {model!r} needs the sky light (light_env)")
     xs = np.broadcast_to(np.asarray(x, np.float64), frames.shape[:-2] + (3,))
-    opts = {"form": m.form, "bounce": m.bounce, "cap": cap, "rule": rule}
+    opts = {"form": m.form, "bounce": m.bounce}
     terms = dynamic_terms(xs, frames, views, mat, spheres, clamped(static_env), **opts)  # type: ignore[arg-type]
     if m.light == "local":
         return terms.blocked, terms.bounced
@@ -101,12 +99,11 @@ def model_terms(model: str, static_env: EnvironmentFn, light_env: EnvironmentFn 
 
 
 def shade_model(model: str, static_env: EnvironmentFn, light_env: EnvironmentFn | None, x: ArrayLike, frames: NDArray,
-                views: NDArray, mat: Material, spheres: SphereBuffer, *, cap: int = SPHERE_CAP,
-                rule: CombineRule = DEFAULT_RULE) -> NDArray[np.float64]:
+                views: NDArray, mat: Material, spheres: SphereBuffer) -> NDArray[np.float64]:
     """Eq. 3 radiance ``(F, 3)`` of ``mat`` lit by ``static_env``, minus the blocked and plus the
-    bounced light of ``model`` (:func:`model_terms`; ``cap``, ``rule`` as there)."""
+    bounced light of ``model`` (:func:`model_terms`)."""
     laf = lafortune(mat)
     static = shade_lafortune(static_env, views, frames, laf.rho_d, np.array(laf.C, np.float64).reshape(-1, 3),
                              np.array(laf.w, np.float64), np.array(laf.rho_s, np.float64).reshape(-1, 3))
-    blocked, bounced = model_terms(model, static_env, light_env, x, frames, views, laf, spheres, cap=cap, rule=rule)
+    blocked, bounced = model_terms(model, static_env, light_env, x, frames, views, laf, spheres)
     return static - blocked + bounced

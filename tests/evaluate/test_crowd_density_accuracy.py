@@ -39,9 +39,9 @@ C = (10.0, 0.0, -1.0)
 
 
 def test_placement_is_seeded_and_respects_density_and_spacing():
-    a = place_crowd(C, 0.5, heading_deg=90.0, span=1.0, seed=3, radius=4.0, free_points=2)
-    b = place_crowd(C, 0.5, heading_deg=90.0, span=1.0, seed=3, radius=4.0, free_points=2)
-    other = place_crowd(C, 0.5, heading_deg=90.0, span=1.0, seed=4, radius=4.0, free_points=2)
+    a = place_crowd(C, 0.5, heading_deg=90.0, phases=(0.0, 0.25, 0.5, 0.75), seed=3, radius=4.0, free_points=2)
+    b = place_crowd(C, 0.5, heading_deg=90.0, phases=(0.0, 0.25, 0.5, 0.75), seed=3, radius=4.0, free_points=2)
+    other = place_crowd(C, 0.5, heading_deg=90.0, phases=(0.0, 0.25, 0.5, 0.75), seed=4, radius=4.0, free_points=2)
     assert a.walkers == b.walkers and np.array_equal(a.free_xz, b.free_xz)
     assert a.walkers != other.walkers
     assert len(a.neighbours) == round(0.5 * math.pi * 16)          # 25 walkers on 50.3 m^2
@@ -57,11 +57,11 @@ def test_placement_is_seeded_and_respects_density_and_spacing():
     assert np.abs(dev).max() <= HEADING_JITTER_DEG
     ways = np.array([math.cos(math.radians(w.yaw_deg - 90.0)) > 0 for w in a.walkers])
     assert 0 < ways.sum() < len(ways)                                  # both ways along the street
-    assert all(0 <= w.time < 1.0 for w in a.walkers)
+    assert {w.time for w in a.walkers} == {0.0, 0.25, 0.5, 0.75}
     # the host and the free points do not depend on the density
-    dense = place_crowd(C, 1.0, heading_deg=90.0, span=1.0, seed=3, radius=4.0, free_points=2)
+    dense = place_crowd(C, 1.0, heading_deg=90.0, phases=(0.0, 0.25, 0.5, 0.75), seed=3, radius=4.0, free_points=2)
     assert dense.host == a.host and np.array_equal(dense.free_xz, a.free_xz) and len(dense.neighbours) == 50
-    assert place_crowd(C, 0.0, heading_deg=90.0, span=1.0, seed=3).neighbours == ()
+    assert place_crowd(C, 0.0, heading_deg=90.0, phases=(0.0, 0.25, 0.5, 0.75), seed=3).neighbours == ()
 
 
 def test_density_counts_the_area_on_the_street_and_too_dense_is_refused():
@@ -73,13 +73,13 @@ def test_density_counts_the_area_on_the_street_and_too_dense_is_refused():
     def inside(xz):
         return np.asarray(xz)[:, 1] <= C[2] + dist
     assert disc_area((C[0], C[2]), r, inside) == pytest.approx(on_street, rel=5e-3)
-    site = place_crowd(C, 0.5, heading_deg=90.0, span=1.0, seed=0, radius=r, inside=inside)
+    site = place_crowd(C, 0.5, heading_deg=90.0, phases=(0.0, 0.25, 0.5, 0.75), seed=0, radius=r, inside=inside)
     assert len(site.neighbours) == round(0.5 * site.area)
     assert all(w.root_xz[1] <= C[2] + dist for w in site.neighbours)
     with pytest.raises(ValueError, match="too high to place"):
-        place_crowd(C, 8.0, heading_deg=90.0, span=1.0, seed=0, radius=1.5)
+        place_crowd(C, 8.0, heading_deg=90.0, phases=(0.0, 0.25, 0.5, 0.75), seed=0, radius=1.5)
     with pytest.raises(ValueError, match="density"):
-        place_crowd(C, -1.0, heading_deg=90.0, span=1.0, seed=0)
+        place_crowd(C, -1.0, heading_deg=90.0, phases=(0.0, 0.25, 0.5, 0.75), seed=0)
 
 
 def first_hit(origin, direction, positions, triangles):
@@ -103,7 +103,7 @@ def first_hit(origin, direction, positions, triangles):
 
 
 def test_self_points_lie_on_the_walker_surface():
-    site = place_crowd(C, 0.0, heading_deg=90.0, span=1.0, seed=5, free_points=1)
+    site = place_crowd(C, 0.0, heading_deg=90.0, phases=(0.0, 0.25, 0.5, 0.75), seed=5, free_points=1)
     host = site_avatars(site, lambda root: 0.25, str(walker_path()))[0]
     pts = evaluation_points(site, host, lambda root: 0.25, 3)
     selfs = [(v, x, n) for kind, v, x, n in pts if kind == "self"]
