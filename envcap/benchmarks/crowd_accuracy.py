@@ -8,8 +8,9 @@ materials at points on the host (``self``) and among the crowd (``free``) is com
 captures with the posed crowd: the probes alone, ``+self`` (the host's own blocker bones),
 ``+self+neighbours`` / ``+neighbours`` (every other walker's spheres by the crowd LOD rule), and the
 same with a crowd-free capture as the static part (``oracle``)
-(:mod:`envcap.evaluate.crowd_accuracy`).  ``--configs`` adds runtime choices (sphere cap, union
-rule, self-sphere scale) measured for the last term.
+(:mod:`envcap.evaluate.crowd_accuracy`).  ``--configs``: the runtime's choices (sphere cap, union
+rule, the self spheres' scale and clamp, :class:`envcap.evaluate.crowd_accuracy.TermConfig`), the
+first for every term, the others for the last; default :data:`DEFAULT_CONFIGS`.
 
 Writes ``crowd_accuracy.json`` (rows, summary, goal lines), ``crowd_accuracy.md`` (tables, PASS /
 FAIL lines) and ``crowd_accuracy.png`` (error against density per term, one panel per material)
@@ -48,34 +49,42 @@ from envcap.scene import load_scene
 SCENE = "canyon"
 SITE_OFFSETS = ((0.0, 0.0), (0.5, 2.0), (0.25, -2.0), (0.75, 0.0))
 """Sites: (fraction of the probe spacing along, m across) from the street's middle probe."""
+DEFAULT_CONFIGS = ("8:rings", "8:rings:1:0.7")
+"""The runtime's terms (cap 8, the rings union), and the same with the self spheres' radii at
+most 0.7 times their distance from the point."""
 
 
 def parse_config(text: str) -> TermConfig:
-    """``CAP[:RULE[:SCALE]]`` (``CAP`` 0: every sphere) as a :class:`TermConfig`; ``ValueError``
-    naming the problem otherwise."""
+    """``CAP[:RULE[:SCALE[:CLAMP[:EXCLUDE]]]]`` (``CAP`` 0: every sphere) as a :class:`TermConfig`;
+    ``ValueError`` naming the problem otherwise."""
     parts = text.split(":")
     try:
+        if len(parts) > 5:
+            raise ValueError
         cap = int(parts[0])
         rule = parts[1] if len(parts) > 1 and parts[1] else TermConfig.rule
-        scale = float(parts[2]) if len(parts) > 2 else 1.0
+        scale = float(parts[2]) if len(parts) > 2 and parts[2] else 1.0
+        clamp = float(parts[3]) if len(parts) > 3 and parts[3] else 0.0
+        exclude = float(parts[4]) if len(parts) > 4 and parts[4] else 0.0
     except ValueError:
-        raise ValueError(f"--configs entry {text!r} must be CAP[:RULE[:SCALE]], e.g. 16:rings:0.8") from None
+        raise ValueError(f"--configs entry {text!r} must be CAP[:RULE[:SCALE[:CLAMP[:EXCLUDE]]]], e.g. 16:rings:1:0.7") from None
     if rule not in COMBINE_RULES:
         raise ValueError(f"--configs entry {text!r}: rule must be one of {', '.join(COMBINE_RULES)}")
-    return TermConfig(cap, rule, scale)
+    return TermConfig(cap, rule, scale, clamp, exclude)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output directory (JSON, Markdown, PNG)")
     p.add_argument("--densities", type=float, nargs="+", default=list(DENSITIES),
                    help="crowd densities, walkers per m^2 (default 0.05 0.2 0.5 1)")
-    p.add_argument("--sites", type=int, default=3, help=f"evaluation sites, 1-{len(SITE_OFFSETS)} (default 3)")
-    p.add_argument("--self-points", type=int, default=3, help="points on the host walker per site (default 3)")
+    p.add_argument("--sites", type=int, default=4, help=f"evaluation sites, 1-{len(SITE_OFFSETS)} (default 4)")
+    p.add_argument("--self-points", type=int, default=5, help="points on the host walker per site (default 5)")
     p.add_argument("--free-points", type=int, default=2, help="points among the crowd per site (default 2)")
-    p.add_argument("--configs", nargs="+", default=["8:rings"],
-                   help="term configurations CAP[:RULE[:SCALE]] (CAP 0: every sphere; SCALE: on the self spheres' "
-                        "radii), the first the main one, the others measured for the last term (default 8:rings, "
-                        "the runtime's)")
+    p.add_argument("--configs", nargs="+", default=list(DEFAULT_CONFIGS),
+                   help="term configurations CAP[:RULE[:SCALE[:CLAMP[:EXCLUDE]]]]: the sphere cap (0: every sphere), "
+                        "the union rule, a factor on the self spheres' radii, those radii at most CLAMP x their "
+                        "distance (0: no clamp), the self blockers' exclude weight; the first the main one, the others "
+                        "measured for the last term (default: %(default)s, the runtime's and the self spheres clamped)")
     p.add_argument("--seed", type=int, default=0, help="placement seed (site i uses seed + i)")
     p.add_argument("--resolution", type=int, default=32, help="face size of the fresh captures (default 32)")
     p.add_argument("--probe-resolution", type=int, default=32, help="face size of the baked probes (default 32)")
@@ -137,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
     if args.quick:
         args.densities, args.sites, args.self_points, args.free_points = [0.0, 0.5], 1, 1, 1
         args.resolution, args.probe_resolution, args.spacing = 16, 8, 100.0
-        args.configs = args.configs[:1] if args.configs else ["8:rings"]
+        args.configs = args.configs[:1]
     configs = [parse_config(c) for c in args.configs]
     if not 1 <= args.sites <= len(SITE_OFFSETS) or args.resolution < 8 or args.probe_resolution < 8 \
             or not args.spacing > 0 or args.self_points < 0 or args.free_points < 0 \
@@ -163,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
     summary = summarize(rows)
     main = configs[0].label
     mats = [m.name for m in MATERIALS]
-    goals = goal_lines(summary, main, "probes") + goal_lines(summary, main, "oracle")
+    goals = [line for cfg in configs for st in STATICS for line in goal_lines(summary, cfg.label, st)]
     md = f"# crowd_accuracy ({SCENE}; {main})\n\n"
     for static in STATICS:
         md += (f"## Error per density, term and material, static part `{static}` (RMS over points, %; ratio to "

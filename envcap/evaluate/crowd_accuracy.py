@@ -91,11 +91,18 @@ class TermConfig:
     """The runtime's choices for the dynamic terms: ``cap`` spheres per point (``0``: every sphere
     of the buffer), the union ``rule`` (:data:`envcap.dynamic.spheres.CombineRule`) and
     ``self_scale``, a factor on the radii of a vertex's own blocker spheres (1: the proxy spheres
-    as fitted)."""
+    as fitted), and ``self_clamp``: when > 0, each of those radii at most ``self_clamp`` times the
+    sphere centre's distance from the point (a cap of half-angle ``asin(self_clamp)`` at most: a
+    fitted sphere of a neighbouring limb can contain a point on the body's surface, and then hides
+    its whole sky); ``self_exclude``: the blockers' ``exclude_weight``
+    (:func:`envcap.dynamic.avatar_blockers.select_blockers`: a vertex's joints of larger skinning
+    weight are not its blockers; 0, ``envcap avatar``'s default: any joint it is skinned to)."""
 
     cap: int = SPHERE_CAP
     rule: str = DEFAULT_RULE
     self_scale: float = 1.0
+    self_clamp: float = 0.0
+    self_exclude: float = 0.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.cap, int) or self.cap < 0:
@@ -103,23 +110,30 @@ class TermConfig:
         check_rule(self.rule)
         if not (math.isfinite(self.self_scale) and 0 < self.self_scale <= 2):
             raise ValueError(f"self sphere scale must be in (0, 2], got {self.self_scale!r}")
+        if not (math.isfinite(self.self_clamp) and 0 <= self.self_clamp < 1):
+            raise ValueError(f"self sphere clamp must be in [0, 1) (0: none), got {self.self_clamp!r}")
+        if not (math.isfinite(self.self_exclude) and 0 <= self.self_exclude < 1):
+            raise ValueError(f"self blockers' exclude weight must be in [0, 1), got {self.self_exclude!r}")
 
     @property
     def label(self) -> str:
         scale = f", self radii x{self.self_scale:g}" if self.self_scale != 1 else ""
-        return f"cap {self.cap or 'all'}, {self.rule}{scale}"
+        clamp = f", self radii <= {self.self_clamp:g} l" if self.self_clamp > 0 else ""
+        excl = f", own joints above weight {self.self_exclude:g}" if self.self_exclude > 0 else ""
+        return f"cap {self.cap or 'all'}, {self.rule}{scale}{clamp}{excl}"
 
     def cap_for(self, spheres: SphereBuffer) -> int:
         """The cap to pass for ``spheres`` (all of them when ``cap`` is 0)."""
         return self.cap if self.cap > 0 else max(1, len(spheres))
 
 
-@lru_cache(maxsize=4)
-def avatar_blockers(path: str) -> Blockers:
+@lru_cache(maxsize=8)
+def avatar_blockers(path: str, exclude_weight: float = 0.0) -> Blockers:
     """The per-vertex blocker bones of the avatar at ``path`` (``envcap avatar``'s defaults: 4
-    joints, mean over the first animation's keyframes, own joints excluded), computed once."""
+    joints, mean over the first animation's keyframes; own joints of weight > ``exclude_weight``
+    excluded), computed once."""
     avatar, proxies = load_rigged(path)
-    return select_blockers(avatar, proxies)
+    return select_blockers(avatar, proxies, exclude_weight=exclude_weight)
 
 
 def normal_frames(normal: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -157,12 +171,18 @@ def site_avatars(site: CrowdSite, ground: Any, path: str) -> list[PosedAvatar]:
     return out
 
 
-def self_spheres(host: PosedAvatar, blockers: Blockers, vertex: int, scale: float = 1.0) -> SphereBuffer:
+def self_spheres(host: PosedAvatar, blockers: Blockers, vertex: int, scale: float = 1.0, clamp: float = 0.0,
+                 point: ArrayLike | None = None) -> SphereBuffer:
     """The posed spheres of the blocker bones of ``vertex`` of ``host`` (those with a score > 0),
-    radii times ``scale``."""
+    radii times ``scale``, and with ``clamp`` > 0 at most ``clamp`` times their centres' distance
+    from ``point`` (3,) m (default: the vertex)."""
     j = blockers.joints[vertex][blockers.scores[vertex] > 0]
     j = j[host.bone_radii[j] > 0]
-    return SphereBuffer(host.bone_centers[j], scale * host.bone_radii[j], np.tile(host.albedo, (len(j), 1)))
+    c, r = host.bone_centers[j], scale * host.bone_radii[j]
+    if clamp > 0:
+        x = host.mesh.positions[vertex] if point is None else np.asarray(point, np.float64)
+        r = np.minimum(r, clamp * np.linalg.norm(c - x, axis=1))
+    return SphereBuffer(c, r, np.tile(host.albedo, (len(j), 1)))
 
 
 def joined(*buffers: SphereBuffer) -> SphereBuffer:
@@ -234,7 +254,6 @@ def evaluate_crowd_accuracy(scene: Any, predictor: Predictor, street: str, cente
         raise ValueError("at least one term configuration is needed")
     path = str(avatar_path if avatar_path is not None else walker_path())
     avatar, _ = load_rigged(path)
-    blockers = avatar_blockers(path)
     phases = animation_phases(avatar)
     extent = street_extent(predictor.manifest, street)
     heading = (90.0 if extent.along == 0 else 0.0) - extent.yaw_deg
@@ -265,9 +284,10 @@ def evaluate_crowd_accuracy(scene: Any, predictor: Predictor, street: str, cente
                     frames, views = normal_frames(nrm)
                     others = lod_spheres(x, avatars[1:])[0]
 
-                    def buffers(cfg: TermConfig, vertex: int = vertex, others: SphereBuffer = others
-                                ) -> dict[str, SphereBuffer]:
-                        own = self_spheres(avatars[0], blockers, vertex, cfg.self_scale)
+                    def buffers(cfg: TermConfig, vertex: int = vertex, others: SphereBuffer = others,
+                                x: NDArray = x) -> dict[str, SphereBuffer]:
+                        own = self_spheres(avatars[0], avatar_blockers(path, cfg.self_exclude), vertex, cfg.self_scale,
+                                           cfg.self_clamp, x)
                         return {"+self": own, "+self+neighbours": joined(own, others)}
                 else:
                     frames, views = street_frames
