@@ -109,9 +109,10 @@ def site_centers(manifest: Any, count: int, spacing: float) -> list[list[float]]
     return out
 
 
-def plot(summary: Sequence[dict[str, Any]], config: str, path: Path) -> None:
-    """Error (%) against density, one panel per material, one line per kind x term (solid: probes
-    as the static part, dashed: oracle)."""
+def plot(summary: Sequence[dict[str, Any]], configs: Sequence[str], path: Path) -> None:
+    """Error (%) against density, one panel per material, one line per kind x term of the first of
+    ``configs`` and per other configuration the self points' last term (solid: probes as the
+    static part, dotted: oracle)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -119,24 +120,25 @@ def plot(summary: Sequence[dict[str, Any]], config: str, path: Path) -> None:
 
     mats = list(dict.fromkeys(s["material"] for s in summary))
     fig, axes = plt.subplots(1, len(mats), figsize=(4.2 * len(mats), 3.8), sharey=True, squeeze=False)
-    colors = {("self", "probes"): "0.3", ("self", "+self"): "tab:orange", ("self", "+self+neighbours"): "tab:red",
-              ("free", "probes"): "0.6", ("free", "+neighbours"): "tab:blue"}
+    lines = [("self", "probes", configs[0], "0.3"), ("self", "+self", configs[0], "tab:orange"),
+             ("self", "+self+neighbours", configs[0], "tab:red"), ("free", "probes", configs[0], "0.6"),
+             ("free", "+neighbours", configs[0], "tab:blue")]
+    lines += [("self", "+self+neighbours", c, color) for c, color in zip(configs[1:], ("tab:purple", "tab:green", "tab:brown"))]
     for ax, mat in zip(axes[0], mats):
-        for (kind, term), color in colors.items():
+        for kind, term, config, color in lines:
             for static, style in (("probes", "-"), ("oracle", ":")):
                 pts = sorted((s["density"], 100 * s["rms"]) for s in summary if s["material"] == mat and s["kind"] == kind
-                             and s["term"] == term and s["static"] == static
-                             and (s["config"] == config or term == "probes"))
+                             and s["term"] == term and s["static"] == static and (s["config"] == config or term == "probes"))
+                label = f"{kind}: {term}" + (f" ({config})" if config != configs[0] else "")
                 if pts:
-                    ax.plot(*zip(*pts), style, marker="o", ms=3, color=color,
-                            label=f"{kind}: {term.replace('probes', static)}" if static == "probes" or term != "probes"
-                            else None)
+                    ax.plot(*zip(*pts), style, marker="o", ms=3, color=color, label=label if static == "probes" else None)
         ax.set_title(mat)
         ax.set_xlabel("crowd density (walkers / m²)")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("Eq. 3 error vs fresh capture (%, RMS over points)")
-    axes[0][-1].legend(fontsize=6, loc="upper left")
-    fig.suptitle(f"canyon: the lit crowd per term and density ({config}; solid: probes, dotted: oracle)", fontsize=9)
+    axes[0][-1].legend(fontsize=6, loc="upper right")
+    fig.suptitle(f"canyon: the lit crowd per term and density ({configs[0]}; solid: probes, dotted: oracle as the "
+                 "static part)", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -190,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
     with atomic_output_dir(args.out) as tmp:
         (Path(tmp) / "crowd_accuracy.json").write_text(json.dumps(result, indent=1))
         (Path(tmp) / "crowd_accuracy.md").write_text(md)
-        plot(summary, main, Path(tmp) / "crowd_accuracy.png")
+        plot(summary, [c.label for c in configs], Path(tmp) / "crowd_accuracy.png")
     print("\n".join(goals))
     print(f"crowd_accuracy: {len(rows)} rows in {time.perf_counter() - t0:.0f} s -> {getattr(args.out, 'path', args.out)}")
     return 0
