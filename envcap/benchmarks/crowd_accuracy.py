@@ -38,7 +38,7 @@ from envcap.evaluate.crowd_accuracy import (
     summarize,
     summary_table,
 )
-from envcap.evaluate.crowd_placement import DENSITIES, street_inside
+from envcap.evaluate.crowd_placement import DENSITIES, check_density, street_inside
 from envcap.evaluate.shading import MATERIALS
 from envcap.evaluate.sweep import StreetExtent
 from envcap.gpu.context import create_context
@@ -150,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
         args.resolution, args.probe_resolution, args.spacing = 16, 8, 100.0
         args.configs = args.configs[:1]
     configs = [parse_config(c) for c in args.configs]
+    args.densities = [check_density(d) for d in args.densities]
     if not 1 <= args.sites <= len(SITE_OFFSETS) or args.resolution < 8 or args.probe_resolution < 8 \
             or not args.spacing > 0 or args.self_points < 0 or args.free_points < 0 \
             or args.self_points + args.free_points < 1 or not args.densities:
