@@ -25,6 +25,7 @@ from envcap.probeset.crossings import corridor, crossing_of, meetings_of
 from envcap.probeset.probe_set import ProbeSet
 from envcap.runtime import methods
 from envcap.runtime.chains import ProbeChains, SkyChain
+from envcap.runtime.crossing_lookup import crossing_street, probe_street
 from envcap.runtime.methods import ParallaxMethod
 from envcap.runtime.sampling import composite, sample_sky
 from envcap.runtime.street import RuntimeStreet, StreetProbes
@@ -116,24 +117,15 @@ class Predictor:
         return self.streets[name].local(x, LOCAL_PROBES, planes)
 
     def _shared_street(self, name: str, k: int, x: NDArray[np.float64], planes: str) -> RuntimeStreet:
-        """Street ``name``'s local probes with crossing ``k``'s probe among them (the owner's own
-        probe; for another street, its position in this street's frame with the planes of this
-        street's probe nearest to it)."""
+        """Street ``name``'s local probes with crossing ``k``'s probe among them
+        (:func:`envcap.runtime.crossing_lookup.crossing_street`, GLSL ``envcap_crossing_street``); a
+        street turned differently from the owner: the crossing probe alone in the owner's frame."""
         owner, i = self.crossing_probes[k]
         sp = self.streets[name]
+        if sp.yaw_deg != self.streets[owner].yaw_deg:
+            return probe_street(self.streets[owner].runtime_street(planes, [i]), int(self.streets[owner].layers[i]))
         local = sp.local(x, LOCAL_PROBES, planes)
-        if owner == name or sp.yaw_deg != self.streets[owner].yaw_deg:
-            return local if owner == name else self.streets[owner].runtime_street(planes, [i])
-        layer = self.streets[owner].layers[i]
-        if np.any(local.layers == layer):
-            return local
-        pos = local.to_frame(self.crossing_centres[k])
-        nearest = int(np.argmin(np.abs(local.positions[:, sp.along] - pos[sp.along])))
-        pl, sl = local.planes[nearest], local.slopes[nearest]
-        order = np.argsort(np.concatenate([local.positions[:, sp.along], [pos[sp.along]]]), kind="stable")
-        return RuntimeStreet(sp.along, np.vstack([local.positions, pos])[order], np.vstack([local.planes, pl])[order],
-                             np.concatenate([local.layers, [layer]])[order], sp.yaw_deg, sp.origin_xz,
-                             np.concatenate([local.slopes, [sl]])[order])
+        return crossing_street(local, local.to_frame(self.crossing_centres[k]), int(self.streets[owner].layers[i]))
 
     def sky_rgb(self, d: ArrayLike, w: ArrayLike, sun: bool | None = None) -> NDArray[np.float64]:
         """Sky ``(M, 4)`` at the original directions and the unshifted level ``z(w)``.
