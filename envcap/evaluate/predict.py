@@ -25,7 +25,7 @@ from envcap.probeset.crossings import corridor, crossing_of, meetings_of
 from envcap.probeset.probe_set import ProbeSet
 from envcap.runtime import methods
 from envcap.runtime.chains import ProbeChains, SkyChain
-from envcap.runtime.crossing_lookup import crossing_street, probe_street
+from envcap.runtime.crossing_lookup import crossing_street, probe_street, street_per_direction
 from envcap.runtime.methods import ParallaxMethod
 from envcap.runtime.sampling import composite, sample_sky
 from envcap.runtime.street import RuntimeStreet, StreetProbes
@@ -33,11 +33,13 @@ from envcap.runtime.street import RuntimeStreet, StreetProbes
 LOCAL_PROBES = 4
 """Probes of a street handed to the runtime twin per position (the nearest ones along it)."""
 
-CROSSING_MODES = ("probe", "shared", "plan", "off")
+CROSSING_MODES = ("direction", "shared", "probe", "plan", "off")
 """How a position inside a crossing is looked up: ``probe`` the crossing probe alone, ``shared``
-the street's own :data:`LOCAL_PROBES` with the crossing probe among them, ``off`` per street."""
+the street's own :data:`LOCAL_PROBES` with the crossing probe among them, ``direction`` each
+direction ``shared`` on the meeting street it looks down
+(:func:`envcap.runtime.crossing_lookup.street_per_direction`), ``off`` per street."""
 
-CROSSING_MODE = "shared"
+CROSSING_MODE = "direction"
 """The default (measured: docs/evaluation.md, "Crossings")."""
 
 
@@ -99,7 +101,8 @@ class Predictor:
     def local_street(self, name: str, x: ArrayLike, planes: str = "nominal") -> RuntimeStreet:
         """The runtime street of the :data:`LOCAL_PROBES` probes nearest ``x`` along street ``name``
         with the plane set ``planes``; inside a crossing (:meth:`crossing_at`) as the crossing mode
-        says (:data:`CROSSING_MODES`): ``shared`` those probes with the crossing probe among them,
+        says (:data:`CROSSING_MODES`): ``shared`` (and ``direction``, whose per-direction choice is
+        :meth:`street_rgba`'s) those probes with the crossing probe among them,
         ``probe`` the crossing probe alone (its owner's frame and planes), ``plan`` the meeting street
         whose probe is nearest to ``x`` in plan, as ``shared``."""
         if name not in self.streets:
@@ -108,7 +111,7 @@ class Predictor:
         if k >= 0 and self.crossing_mode == "probe":
             owner, i = self.crossing_probes[k]
             return self.streets[owner].runtime_street(planes, [i])
-        if k >= 0 and self.crossing_mode == "shared":
+        if k >= 0 and self.crossing_mode in ("shared", "direction"):
             return self._shared_street(name, k, x, planes)
         if k >= 0 and self.crossing_mode == "plan":
             cands = [self._shared_street(self.corridors[i].name, k, x, planes) for i in self.meetings[k].streets]
@@ -146,7 +149,17 @@ class Predictor:
         x = np.asarray(x, np.float64).reshape(3)
         d = np.asarray(d, np.float64).reshape(-1, 3)
         w = np.broadcast_to(np.asarray(w, np.float64), d.shape[:1])
-        return m(self.chains, self.local_street(street, x, m.planes), x, d, w)
+        k = self.crossing_at(x) if self.crossing_mode == "direction" else -1
+        if k < 0:
+            return m(self.chains, self.local_street(street, x, m.planes), x, d, w)
+        streets = [self._shared_street(self.corridors[i].name, k, x, m.planes) for i in self.meetings[k].streets]
+        pick = street_per_direction(streets, x, d)
+        out = np.zeros((d.shape[0], 4))
+        for j, st in enumerate(streets):
+            sel = pick == j
+            if np.any(sel):
+                out[sel] = m(self.chains, st, x, d[sel], w[sel])
+        return out
 
     def predict(self, method: str | ParallaxMethod, street: str, x: ArrayLike, d: ArrayLike, w: ArrayLike,
                 sun: bool | None = None) -> NDArray[np.float64]:

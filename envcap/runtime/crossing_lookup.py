@@ -8,14 +8,20 @@ probes (:func:`crossing_street`, GLSL ``envcap_crossing_street``) when the stree
 owner's frame (the owner itself or a street of the same yaw), else on the crossing probe alone in
 its owner's frame (:func:`probe_street`, GLSL ``envcap_probe_street``).  Any registered method
 (:mod:`envcap.runtime.methods`) then runs on the result.
+
+Mode ``direction`` chooses per direction: each direction ``d`` from ``x`` is looked up on the
+meeting street it looks down, the one whose facades the ray leaves last (:func:`facade_exit`,
+GLSL ``envcap_facade_exit``: the largest exit distance; ties, e.g. rays with no plan component,
+go to the first street, the crossing's owner).  Each direction still costs one lookup.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from envcap.runtime.limits import MAX_PROBES
+from envcap.runtime.parallax import frame_direction
 from envcap.runtime.street import RuntimeStreet
 
 
@@ -57,3 +63,32 @@ def probe_street(street: RuntimeStreet, layer: int) -> RuntimeStreet:
     i = idx[:1]
     return RuntimeStreet(street.along, street.positions[i], street.planes[i], street.layers[i], street.yaw_deg,
                          street.origin_xz, street.slopes[i])
+
+
+NO_EXIT = 1e30
+"""What :func:`facade_exit` gives a ray parallel to the facades (GLSL ``ENVCAP_NO_EXIT``)."""
+
+
+def facade_exit(street: RuntimeStreet, x: ArrayLike, d: ArrayLike) -> NDArray[np.float64]:
+    """Per world direction ``d`` ``(M, 3)``: the distance (m, along ``d``) at which the ray from
+    the WORLD point ``x`` (3,) leaves ``street`` through one of its facades (the planes of its
+    probe nearest to ``x`` along it, in its frame); :data:`NO_EXIT` for a ray parallel to the
+    facades (or NaN), 0 for a point already outside them.  GLSL ``envcap_facade_exit`` (float32,
+    street-local)."""
+    xf = street.to_frame(np.asarray(x, np.float64).reshape(3))
+    df = frame_direction(np.asarray(d, np.float64).reshape(-1, 3), street.frame)
+    i = int(street.nearest(xf))
+    fmin, fmax = street.planes[i, 0], street.planes[i, 1]
+    c = 2 - street.along
+    a, dc = xf[c], df[:, c]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(dc > 0.0, (fmax - a) / dc, np.where(dc < 0.0, (fmin - a) / dc, NO_EXIT))
+        return np.where(t > 0.0, np.minimum(t, NO_EXIT), np.where(t <= 0.0, 0.0, NO_EXIT))
+
+
+def street_per_direction(streets: list[RuntimeStreet], x: ArrayLike, d: ArrayLike) -> NDArray[np.int64]:
+    """Per world direction ``d`` ``(M, 3)``: the index in ``streets`` (the meeting streets, owner
+    first) of the street the ray from ``x`` looks down: the largest :func:`facade_exit` (ties: the
+    lower index)."""
+    t = np.stack([facade_exit(st, x, d) for st in streets])
+    return np.argmax(t, axis=0).astype(np.int64)

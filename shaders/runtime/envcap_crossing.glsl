@@ -12,6 +12,8 @@
 //   * a street turned differently from the owner: envcap_probe_street(owner, layer), the crossing
 //     probe alone in the owner's frame (the shading point then in the owner's local frame).
 // Any envcap_sample_* (envcap_sample_depth_refine: the best inside a crossing) then runs on the result.
+// Mode `direction` (the default): build that street for each meeting street and look each direction
+// up on the one whose facades the ray leaves last (envcap_facade_exit; ties: the first street).
 #include "runtime/envcap_runtime.glsl"
 
 // Street `street` with the probe `probe` (xyz: its position in the street's local frame, m;
@@ -72,6 +74,23 @@ EnvcapStreet envcap_probe_street(EnvcapStreet street, float layer)
         }
     }
     return out_street;
+}
+
+const float ENVCAP_NO_EXIT = 1e30;   // envcap_facade_exit of a ray parallel to the facades
+
+// The distance (m, along d) at which the ray from x (street-local, m) along the WORLD direction d
+// leaves `street` through one of its facades (the planes of its probe nearest to x along it);
+// ENVCAP_NO_EXIT for a ray parallel to them (or NaN), 0 for a point already outside them.
+// Numpy twin: envcap.runtime.crossing_lookup.facade_exit.
+float envcap_facade_exit(EnvcapStreet street, vec3 x, vec3 d)
+{
+    int i = envcap_nearest_probe(x[street.along], street.along_s, street.count);
+    int c = 2 - street.along;
+    float dc = envcap_frame_dir(d, street.frame)[c];
+    float t = ENVCAP_NO_EXIT;
+    if (dc > 0.0) t = (street.planes[i].y - x[c]) / dc;
+    if (dc < 0.0) t = (street.planes[i].x - x[c]) / dc;
+    return (t > 0.0) ? min(t, ENVCAP_NO_EXIT) : ((t <= 0.0) ? 0.0 : ENVCAP_NO_EXIT);
 }
 
 #endif  // ENVCAP_CROSSING_GLSL

@@ -356,24 +356,60 @@ fn envcap_sample_nearest_0( probes_texture_2 : texture_cube_array<f32>,  probes_
 
 var<private> _S24 : vec4<f32>;
 
-struct _S25
+fn envcap_facade_exit_0( street_4 : EnvcapStreet_0,  x_8 : vec3<f32>,  d_7 : vec3<f32>) -> f32
+{
+    var i_1 : i32 = envcap_nearest_probe_0(x_8[street_4.along_1], street_4.along_s_0, street_4.count_1);
+    var c_0 : i32 = i32(2) - street_4.along_1;
+    var _S25 : vec3<f32> = envcap_frame_dir_0(d_7, street_4.frame_0);
+    var t_2 : f32;
+    if((_S25[c_0]) > 0.0f)
+    {
+        t_2 = (street_4.planes_0[i_1].y - x_8[c_0]) / _S25[c_0];
+    }
+    else
+    {
+        t_2 = 1.00000001504746622e+30f;
+    }
+    if((_S25[c_0]) < 0.0f)
+    {
+        t_2 = (street_4.planes_0[i_1].x - x_8[c_0]) / _S25[c_0];
+    }
+    if(t_2 > 0.0f)
+    {
+        t_2 = min(t_2, 1.00000001504746622e+30f);
+    }
+    else
+    {
+        if(t_2 <= 0.0f)
+        {
+            t_2 = 0.0f;
+        }
+        else
+        {
+            t_2 = 1.00000001504746622e+30f;
+        }
+    }
+    return t_2;
+}
+
+struct _S26
 {
     @location(0) o_0 : vec4<f32>,
 };
 
 struct pixelInput_0
 {
-    @location(0) c_0 : vec4<f32>,
+    @location(0) c_1 : vec4<f32>,
     @location(1) b_0 : vec4<f32>,
     @location(2) a_0 : vec4<f32>,
 };
 
 @fragment
-fn main( _S26 : pixelInput_0) -> _S25
+fn main( _S27 : pixelInput_0) -> _S26
 {
-    _S1 = _S26.c_0;
-    _S2 = _S26.b_0;
-    _S3 = _S26.a_0;
+    _S1 = _S27.c_1;
+    _S2 = _S27.b_0;
+    _S3 = _S27.a_0;
     var s_1 : EnvcapStreet_0;
     var k_4 : i32 = i32(0);
     for(;;)
@@ -385,10 +421,10 @@ fn main( _S26 : pixelInput_0) -> _S25
         {
             break;
         }
-        var _S27 : f32 = f32(k_4);
-        var _S28 : f32 = _S27 * 5.0f;
-        s_1.along_s_0[k_4] = _S28;
-        s_1.pos_0[k_4] = vec4<f32>(_S28, 2.0f, 0.0f, _S27);
+        var _S28 : f32 = f32(k_4);
+        var _S29 : f32 = _S28 * 5.0f;
+        s_1.along_s_0[k_4] = _S29;
+        s_1.pos_0[k_4] = vec4<f32>(_S29, 2.0f, 0.0f, _S28);
         s_1.planes_0[k_4] = vec4<f32>(-5.0f, 5.0f, 0.0f, 0.0f);
         k_4 = k_4 + i32(1);
     }
@@ -410,10 +446,20 @@ fn main( _S26 : pixelInput_0) -> _S25
     s_1.nlevels_0 = i32(5);
     s_1.frame_0 = normalize(vec2<f32>(1.0f, _S1.z));
     var cs_0 : EnvcapStreet_0 = envcap_crossing_street_0(s_1, vec4<f32>(_S1.w, 2.0f, 0.0f, 9.0f));
+    var one_0 : EnvcapStreet_0 = envcap_probe_street_0(cs_0, 9.0f);
     var n_5 : vec3<f32> = normalize(_S2.xyz);
-    var _S29 : vec4<f32> = vec4<f32>(envcap_sample_nearest_0(probes_texture_0, probes_sampler_0, sky_texture_0, sky_sampler_0, _S3.xyz, n_5, _S1.w, cs_0) + envcap_sample_nearest_0(probes_texture_0, probes_sampler_0, sky_texture_0, sky_sampler_0, _S3.xyz, n_5, _S1.w, envcap_probe_street_0(cs_0, 9.0f)), 1.0f);
-    _S24 = _S29;
-    var _S30 : _S25 = _S25( _S29 );
-    return _S30;
+    _S24 = vec4<f32>(envcap_sample_nearest_0(probes_texture_0, probes_sampler_0, sky_texture_0, sky_sampler_0, _S3.xyz, n_5, _S1.w, cs_0) + envcap_sample_nearest_0(probes_texture_0, probes_sampler_0, sky_texture_0, sky_sampler_0, _S3.xyz, n_5, _S1.w, one_0), 1.0f);
+    var _S30 : f32;
+    if((envcap_facade_exit_0(cs_0, _S3.xyz, n_5)) > (envcap_facade_exit_0(one_0, _S2.xyz, n_5)))
+    {
+        _S30 = 1.0f;
+    }
+    else
+    {
+        _S30 = 0.0f;
+    }
+    _S24[i32(3)] = _S30;
+    var _S31 : _S26 = _S26( _S24 );
+    return _S31;
 }
 

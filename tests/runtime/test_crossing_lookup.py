@@ -14,7 +14,7 @@ from envcap.core import cube
 from envcap.gpu.cube_array import CubeArrayTexture, cube_texture
 from envcap.gpu.glsl_harness import run_glsl
 from envcap.runtime.chains import ProbeChains
-from envcap.runtime.crossing_lookup import crossing_street, probe_street
+from envcap.runtime.crossing_lookup import NO_EXIT, crossing_street, facade_exit, probe_street, street_per_direction
 from envcap.runtime.limits import MAX_PROBES
 from envcap.runtime.methods.depth_refine import METHOD, inverse_distance
 from envcap.runtime.parallax import exit_distance
@@ -136,3 +136,78 @@ def test_glsl_crossing_lookup_matches_twin(gl_ctx, world):
     # the crossing probe is looked up where it is nearest: the same as the street that had it
     full = sample_street(ProbeChains(probes, powers, distance=dist), sky, street, f32(x), f32(d), f32(w), METHOD)
     np.testing.assert_allclose(ref, full, rtol=1e-12, atol=1e-12)
+
+
+def cross_street():
+    """Street B along z through the crossing probe of A (x = 14 m), facades at x = 8 and 20 m."""
+    pos = np.array([[14.0, 2.0, -7.0], [14.0, 2.0, 7.0]])
+    return RuntimeStreet(2, pos, np.array([[8.0, 20.0, 0.0]] * 2), np.array([0, 3]))
+
+
+def test_facade_exit_against_hand_values():
+    a = cut(full_street(), [0, 1])          # along x, facades z = -5 .. 5
+    t = facade_exit(a, (1.0, 2.0, 1.0), np.array([[0, 0, 1.0], [0, 0, -1.0], [0.6, 0, 0.8], [1.0, 0, 0], [0, 1.0, -0.0]]))
+    np.testing.assert_allclose(t, [4.0, 6.0, 5.0, NO_EXIT, NO_EXIT])
+    assert facade_exit(a, (1.0, 2.0, 7.0), np.array([[0, 0, 1.0]]))[0] == 0.0        # outside: 0
+    b = cross_street()
+    # a ray along +x from inside both corridors looks down A (B's facade is left first)
+    assert street_per_direction([a, b], (10.0, 1.0, 0.0), np.array([[1.0, 0, 0], [0, 0, 1.0], [0, 1.0, 0]])).tolist() == [0, 1, 0]
+
+
+def test_glsl_direction_choice_matches_twin(gl_ctx, world):
+    """envcap_facade_exit of two meeting streets (A along x, B along z; and B turned by 37 deg about a
+    far origin) and the lookup of each direction on the street it looks down (depth_refine) against
+    the numpy twin: 12,000 points in the crossing region and on its edges, the crossing probe itself,
+    axis and -0.0 directions.  Exit distances to float32 precision; choices agree but for near ties."""
+    probes, sky, street, powers, dist, pt, st, tex = world
+    c = street.positions[2]
+    a = crossing_street(cut(street, [0, 1, 3]), c, 2)
+    b = crossing_street(cross_street(), c, 2)
+    rng = np.random.default_rng(13)
+    n = 12_000
+    x = np.c_[rng.uniform(8.0, 20.0, n), rng.uniform(0.3, 3.0, n), rng.uniform(-6.0, 6.0, n)]
+    hard = np.array([c, [8.0, 1.0, 0.0], [20.0, 1.0, 6.0], [14.0, 1.0, -6.0], [8.0, 0.3, -6.0]])
+    hx = np.repeat(hard, 8, axis=0)
+    x = np.concatenate([x, hx])
+    d = rng.normal(size=(len(x), 3))
+    d[-len(hx):] = np.tile([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [-0.0, 0.5, -1],
+                            [0.6, -0.0, 0.8], [-0.8, 0.6, -0.0]], (len(hard), 1))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    w = np.exp(rng.uniform(np.log(1.0), np.log(1e5), len(x)))
+    ua, ub = a.uniforms(powers), b.uniforms(powers)
+    tex.use(DIST_UNIT)
+    body = ("float ta = envcap_facade_exit(envcap_street, xa[i].xyz, d[i].xyz);\n"
+            "float tb = envcap_facade_exit(street_b, xb[i].xyz, d[i].xyz);\n"
+            "vec3 c = tb > ta ? envcap_sample_depth_refine(probes, sky, dist, xb[i].xyz, d[i].xyz, w[i].x, street_b)\n"
+            "                 : envcap_sample_depth_refine(probes, sky, dist, xa[i].xyz, d[i].xyz, w[i].x, envcap_street);\n"
+            "o[i] = vec4(c, 0.0); t[i] = vec4(ta, tb, 0.0, 0.0);")
+    out = run_glsl(gl_ctx, body, {"xa": ua.to_local(x), "xb": ub.to_local(x), "d": d, "w": w}, {"o": 3, "t": 2},
+                   uniforms={**ua.values(), **ub.values("street_b")},
+                   declarations=CDECL + "\nuniform EnvcapStreet street_b;\n", includes=INCLUDES, probes=pt, sky=st)
+    f32 = (lambda v: np.asarray(v, np.float32).astype(np.float64))
+    ta = np.array([facade_exit(a, xi, di[None])[0] for xi, di in zip(f32(x), f32(d))])
+    tb = np.array([facade_exit(b, xi, di[None])[0] for xi, di in zip(f32(x), f32(d))])
+    for got, ref in ((out["t"][:, 0], ta), (out["t"][:, 1], tb)):
+        assert np.all(np.isfinite(got))
+        np.testing.assert_allclose(got, np.minimum(ref, NO_EXIT), rtol=2e-5, atol=2e-5)
+    pick = (tb > ta).astype(int)
+    chains = ProbeChains(probes, powers, distance=dist)
+    ref = np.zeros((len(x), 3))
+    for j, s in enumerate((a, b)):
+        sel = pick == j
+        ref[sel] = sample_street(chains, sky, s, f32(x[sel]), f32(d[sel]), f32(w[sel]), METHOD)
+    rgb = out["o"]
+    assert np.all(np.isfinite(rgb)) and np.all(np.isfinite(ref))
+    close = np.abs(rgb - ref).max(axis=1) <= 4e-6 * np.abs(ref).max() + 1e-5 * np.abs(ref).max(axis=1)
+    assert close.mean() > 0.995, close.mean()
+    assert np.array_equal(pick[-len(hx):], (out["t"][-len(hx):, 1] > out["t"][-len(hx):, 0]).astype(int))
+    # on a turned street B (frame yaw 37 deg about a far origin) the exits still agree
+    bt = dataclasses.replace(b, yaw_deg=37.0, origin_xz=(350.5, -820.25), along=0,
+                             positions=np.c_[b.positions[:, 2], b.positions[:, 1], b.positions[:, 0]],
+                             planes=b.planes.copy())
+    ubt = bt.uniforms(powers)
+    tt = run_glsl(gl_ctx, "o[i] = vec4(envcap_facade_exit(envcap_street, x[i].xyz, d[i].xyz));",
+                  {"x": ubt.to_local(x[:2000]), "d": d[:2000]}, {"o": 1}, uniforms=ubt.values(),
+                  declarations=CDECL, includes=INCLUDES)["o"][:, 0]
+    ref = np.array([facade_exit(bt, xi, di[None])[0] for xi, di in zip(x[:2000], f32(d[:2000]))])
+    np.testing.assert_allclose(tt, ref, rtol=1e-3, atol=2e-3)
