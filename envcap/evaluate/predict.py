@@ -4,10 +4,11 @@ Nothing here samples or blends on its own: each lookup is a registered runtime m
 (:mod:`envcap.runtime.methods`) on a runtime street, composited over the sky with
 :func:`envcap.runtime.sampling.composite`.  What the evaluator adds: the runtime street of each
 position is made of the :data:`LOCAL_PROBES` probes nearest to it (the runtime holds at most
-``MAX_PROBES`` per street; a long street has more), or, for a position inside a crossing of a set
-that records them (``Manifest.crossings``), of the crossing's probe alone (what the street map
-resolves a crossing to: :mod:`envcap.probeset.crossings`, docs/crossings.md), and a second sky chain (with the sun if the
-bake left it out, or without) so that both sky variants can be predicted.
+``MAX_PROBES`` per street; a long street has more), inside a crossing of a set that records them
+(``Manifest.crossings``) as the crossing lookup mode says (:data:`CROSSING_MODES`; the default: each
+direction on the meeting street it looks down, with the crossing probe among its probes,
+:mod:`envcap.runtime.crossing_lookup`, docs/crossings.md), and a second sky chain (with the sun if
+the bake left it out, or without) so that both sky variants can be predicted.
 """
 
 from __future__ import annotations
