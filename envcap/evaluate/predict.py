@@ -131,6 +131,15 @@ class Predictor:
         local = sp.local(x, LOCAL_PROBES, planes)
         return crossing_street(local, local.to_frame(self.crossing_centres[k]), int(self.streets[owner].layers[i]))
 
+    def _direction_street(self, name: str, k: int, x: NDArray[np.float64], planes: str) -> RuntimeStreet:
+        """Mode ``direction``: meeting street ``name`` as ``shared`` hands it when it runs in the owner's
+        frame; a street turned differently keeps its own probes (the crossing probe's cube is in the
+        owner's frame, and that street's planes are the right ones for the rays looking down it)."""
+        owner = self.crossing_probes[k][0]
+        if self.streets[name].yaw_deg != self.streets[owner].yaw_deg:
+            return self.streets[name].local(x, LOCAL_PROBES, planes)
+        return self._shared_street(name, k, x, planes)
+
     def sky_rgb(self, d: ArrayLike, w: ArrayLike, sun: bool | None = None) -> NDArray[np.float64]:
         """Sky ``(M, 4)`` at the original directions and the unshifted level ``z(w)``.
 
@@ -153,7 +162,7 @@ class Predictor:
         k = self.crossing_at(x) if self.crossing_mode == "direction" else -1
         if k < 0:
             return m(self.chains, self.local_street(street, x, m.planes), x, d, w)
-        streets = [self._shared_street(self.corridors[i].name, k, x, m.planes) for i in self.meetings[k].streets]
+        streets = [self._direction_street(self.corridors[i].name, k, x, m.planes) for i in self.meetings[k].streets]
         pick = street_per_direction(streets, x, d)
         out = np.zeros((d.shape[0], 4))
         for j, st in enumerate(streets):

@@ -143,5 +143,11 @@ def test_the_evaluator_resolves_a_crossing_to_its_probe(crossed):
             shared.street_rgba("planes_mip", "east_west", inside, d[2:], w[:1])[0]]   # straight up: a tie, the owner
     np.testing.assert_array_equal(got, np.array(want))
     assert not np.array_equal(want[0], shared.street_rgba("planes_mip", "north_south", inside, d[:1], w[:1])[0])
+    # a meeting street turned differently from the owner keeps its own probes in mode direction
+    # (the crossing probe's cube is in the owner's frame)
+    import dataclasses
+    direction.streets["east_west"] = dataclasses.replace(direction.streets["east_west"], yaw_deg=0.5)   # the owner
+    assert list(direction._direction_street("north_south", 0, inside, "nominal").layers) == [5, 6, 7, 8]
+    assert centre in direction._direction_street("east_west", 0, inside, "nominal").layers
     for p in (probe, shared):      # outside the region: per street, as without crossings
         assert list(p.local_street("north_south", outside).layers) == list(off.local_street("north_south", outside).layers)
