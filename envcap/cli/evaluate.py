@@ -63,9 +63,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--crossings", action="store_true",
                    help="with --bake: add a probe at each crossing's centre and record the crossings (as envcap capture does)")
     p.add_argument("--crossing-lookup", choices=list(CROSSING_MODES), default=CROSSING_MODE,
-                   help=f"positions inside a crossing of a set that records them: {CROSSING_MODE} (default: the street's "
-                        "probes with the crossing probe among them), probe (the crossing probe alone), plan (the meeting "
-                        "street whose probe is nearest in plan), off (per street); docs/crossings.md")
+                   help=f"positions inside a crossing of a set that records them: {CROSSING_MODE} (default: each direction "
+                        "on the meeting street it looks down, with the crossing probe among its probes), shared (the "
+                        "position's street with the crossing probe among its probes), probe (the crossing probe alone), "
+                        "plan (the meeting street whose probe is nearest in plan), off (per street); docs/crossings.md")
     p.add_argument("--out", required=True, type=Path, help="report directory (written atomically)")
     p.add_argument("--positions", type=int, default=DEFAULT_SWEEP.per_street, metavar="K",
                    help=f"evaluation positions per street (default {DEFAULT_SWEEP.per_street})")

@@ -4,10 +4,11 @@ Nothing here samples or blends on its own: each lookup is a registered runtime m
 (:mod:`envcap.runtime.methods`) on a runtime street, composited over the sky with
 :func:`envcap.runtime.sampling.composite`.  What the evaluator adds: the runtime street of each
 position is made of the :data:`LOCAL_PROBES` probes nearest to it (the runtime holds at most
-``MAX_PROBES`` per street; a long street has more), or, for a position inside a crossing of a set
-that records them (``Manifest.crossings``), of the crossing's probe alone (what the street map
-resolves a crossing to: :mod:`envcap.probeset.crossings`, docs/crossings.md), and a second sky chain (with the sun if the
-bake left it out, or without) so that both sky variants can be predicted.
+``MAX_PROBES`` per street; a long street has more), inside a crossing of a set that records them
+(``Manifest.crossings``) as the crossing lookup mode says (:data:`CROSSING_MODES`; the default: each
+direction on the meeting street it looks down, with the crossing probe among its probes,
+:mod:`envcap.runtime.crossing_lookup`, docs/crossings.md), and a second sky chain (with the sun if
+the bake left it out, or without) so that both sky variants can be predicted.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from envcap.probeset.crossings import corridor, crossing_of, meetings_of
 from envcap.probeset.probe_set import ProbeSet
 from envcap.runtime import methods
 from envcap.runtime.chains import ProbeChains, SkyChain
+from envcap.runtime.crossing_lookup import crossing_street, probe_street, street_per_direction
 from envcap.runtime.methods import ParallaxMethod
 from envcap.runtime.sampling import composite, sample_sky
 from envcap.runtime.street import RuntimeStreet, StreetProbes
@@ -32,11 +34,13 @@ from envcap.runtime.street import RuntimeStreet, StreetProbes
 LOCAL_PROBES = 4
 """Probes of a street handed to the runtime twin per position (the nearest ones along it)."""
 
-CROSSING_MODES = ("probe", "shared", "plan", "off")
+CROSSING_MODES = ("direction", "shared", "probe", "plan", "off")
 """How a position inside a crossing is looked up: ``probe`` the crossing probe alone, ``shared``
-the street's own :data:`LOCAL_PROBES` with the crossing probe among them, ``off`` per street."""
+the street's own :data:`LOCAL_PROBES` with the crossing probe among them, ``direction`` each
+direction ``shared`` on the meeting street it looks down
+(:func:`envcap.runtime.crossing_lookup.street_per_direction`), ``off`` per street."""
 
-CROSSING_MODE = "shared"
+CROSSING_MODE = "direction"
 """The default (measured: docs/evaluation.md, "Crossings")."""
 
 
@@ -98,7 +102,8 @@ class Predictor:
     def local_street(self, name: str, x: ArrayLike, planes: str = "nominal") -> RuntimeStreet:
         """The runtime street of the :data:`LOCAL_PROBES` probes nearest ``x`` along street ``name``
         with the plane set ``planes``; inside a crossing (:meth:`crossing_at`) as the crossing mode
-        says (:data:`CROSSING_MODES`): ``shared`` those probes with the crossing probe among them,
+        says (:data:`CROSSING_MODES`): ``shared`` (and ``direction``, whose per-direction choice is
+        :meth:`street_rgba`'s) those probes with the crossing probe among them,
         ``probe`` the crossing probe alone (its owner's frame and planes), ``plan`` the meeting street
         whose probe is nearest to ``x`` in plan, as ``shared``."""
         if name not in self.streets:
@@ -107,7 +112,7 @@ class Predictor:
         if k >= 0 and self.crossing_mode == "probe":
             owner, i = self.crossing_probes[k]
             return self.streets[owner].runtime_street(planes, [i])
-        if k >= 0 and self.crossing_mode == "shared":
+        if k >= 0 and self.crossing_mode in ("shared", "direction"):
             return self._shared_street(name, k, x, planes)
         if k >= 0 and self.crossing_mode == "plan":
             cands = [self._shared_street(self.corridors[i].name, k, x, planes) for i in self.meetings[k].streets]
@@ -116,24 +121,24 @@ class Predictor:
         return self.streets[name].local(x, LOCAL_PROBES, planes)
 
     def _shared_street(self, name: str, k: int, x: NDArray[np.float64], planes: str) -> RuntimeStreet:
-        """Street ``name``'s local probes with crossing ``k``'s probe among them (the owner's own
-        probe; for another street, its position in this street's frame with the planes of this
-        street's probe nearest to it)."""
+        """Street ``name``'s local probes with crossing ``k``'s probe among them
+        (:func:`envcap.runtime.crossing_lookup.crossing_street`, GLSL ``envcap_crossing_street``); a
+        street turned differently from the owner: the crossing probe alone in the owner's frame."""
         owner, i = self.crossing_probes[k]
         sp = self.streets[name]
+        if sp.yaw_deg != self.streets[owner].yaw_deg:
+            return probe_street(self.streets[owner].runtime_street(planes, [i]), int(self.streets[owner].layers[i]))
         local = sp.local(x, LOCAL_PROBES, planes)
-        if owner == name or sp.yaw_deg != self.streets[owner].yaw_deg:
-            return local if owner == name else self.streets[owner].runtime_street(planes, [i])
-        layer = self.streets[owner].layers[i]
-        if np.any(local.layers == layer):
-            return local
-        pos = local.to_frame(self.crossing_centres[k])
-        nearest = int(np.argmin(np.abs(local.positions[:, sp.along] - pos[sp.along])))
-        pl, sl = local.planes[nearest], local.slopes[nearest]
-        order = np.argsort(np.concatenate([local.positions[:, sp.along], [pos[sp.along]]]), kind="stable")
-        return RuntimeStreet(sp.along, np.vstack([local.positions, pos])[order], np.vstack([local.planes, pl])[order],
-                             np.concatenate([local.layers, [layer]])[order], sp.yaw_deg, sp.origin_xz,
-                             np.concatenate([local.slopes, [sl]])[order])
+        return crossing_street(local, local.to_frame(self.crossing_centres[k]), int(self.streets[owner].layers[i]))
+
+    def _direction_street(self, name: str, k: int, x: NDArray[np.float64], planes: str) -> RuntimeStreet:
+        """Mode ``direction``: meeting street ``name`` as ``shared`` hands it when it runs in the owner's
+        frame; a street turned differently keeps its own probes (the crossing probe's cube is in the
+        owner's frame, and that street's planes are the right ones for the rays looking down it)."""
+        owner = self.crossing_probes[k][0]
+        if self.streets[name].yaw_deg != self.streets[owner].yaw_deg:
+            return self.streets[name].local(x, LOCAL_PROBES, planes)
+        return self._shared_street(name, k, x, planes)
 
     def sky_rgb(self, d: ArrayLike, w: ArrayLike, sun: bool | None = None) -> NDArray[np.float64]:
         """Sky ``(M, 4)`` at the original directions and the unshifted level ``z(w)``.
@@ -154,7 +159,17 @@ class Predictor:
         x = np.asarray(x, np.float64).reshape(3)
         d = np.asarray(d, np.float64).reshape(-1, 3)
         w = np.broadcast_to(np.asarray(w, np.float64), d.shape[:1])
-        return m(self.chains, self.local_street(street, x, m.planes), x, d, w)
+        k = self.crossing_at(x) if self.crossing_mode == "direction" else -1
+        if k < 0:
+            return m(self.chains, self.local_street(street, x, m.planes), x, d, w)
+        streets = [self._direction_street(self.corridors[i].name, k, x, m.planes) for i in self.meetings[k].streets]
+        pick = street_per_direction(streets, x, d)
+        out = np.zeros((d.shape[0], 4))
+        for j, st in enumerate(streets):
+            sel = pick == j
+            if np.any(sel):
+                out[sel] = m(self.chains, st, x, d[sel], w[sel])
+        return out
 
     def predict(self, method: str | ParallaxMethod, street: str, x: ArrayLike, d: ArrayLike, w: ArrayLike,
                 sun: bool | None = None) -> NDArray[np.float64]:

@@ -159,6 +159,12 @@ o = vec4(L, 1.0);"""),
                                        _SAMPLERS + "ENVCAP_BINDING(5) uniform ENVCAP_DISTANCE_SAMPLER dist;\n",
                                        _LOCAL_STREET + """
 o = vec4(envcap_sample_depth_refine(probes, sky, dist, a.xyz, normalize(b.xyz), c.w, s), 1.0);"""),
+    "envcap_crossing": RuntimeUnit(("runtime/envcap_crossing.glsl",), _SAMPLERS, _LOCAL_STREET + """
+EnvcapStreet cs = envcap_crossing_street(s, vec4(c.w, 2.0, 0.0, 9.0));
+EnvcapStreet one = envcap_probe_street(cs, 9.0);
+vec3 n = normalize(b.xyz);
+o = vec4(envcap_sample_nearest(probes, sky, a.xyz, n, c.w, cs) + envcap_sample_nearest(probes, sky, a.xyz, n, c.w, one), 1.0);
+o.w = envcap_facade_exit(cs, a.xyz, n) > envcap_facade_exit(one, b.xyz, n) ? 1.0 : 0.0;"""),
     "envcap_street_uniforms": RuntimeUnit(("runtime/envcap_street_uniforms.glsl",), _SAMPLERS, """
 vec3 n = normalize(b.xyz);
 o = vec4(envcap_sample_nearest(probes, sky, a.xyz, n, c.w, envcap_street)

@@ -86,9 +86,23 @@ fn envcap_city_locate_0( street_map_texture_2 : texture_2d<u32>,  street_map_sam
     return _S10;
 }
 
-var<private> _S24 : vec4<f32>;
+fn envcap_street_map_crossing_0( id_1 : u32,  street_count_0 : u32) -> i32
+{
+    var _S24 : i32;
+    if(id_1 > street_count_0)
+    {
+        _S24 = i32(id_1 - street_count_0) - i32(1);
+    }
+    else
+    {
+        _S24 = i32(-1);
+    }
+    return _S24;
+}
 
-struct _S25
+var<private> _S25 : vec4<f32>;
+
+struct _S26
 {
     @location(0) o_0 : vec4<f32>,
 };
@@ -100,17 +114,17 @@ struct pixelInput_0
 };
 
 @fragment
-fn main( _S26 : pixelInput_0) -> _S25
+fn main( _S27 : pixelInput_0) -> _S26
 {
-    _S1 = _S26.c_0;
-    _S2 = _S26.a_0;
+    _S1 = _S27.c_0;
+    _S2 = _S27.a_0;
     var range_1 : vec4<u32>;
     var local_1 : vec3<f32>;
-    var _S27 : u32 = envcap_city_locate_0(street_map_texture_0, street_map_sampler_0, _S26.c_0.xy, _S26.c_0.z, frames_texture_0, frames_sampler_0, ranges_texture_0, ranges_sampler_0, _S26.a_0.xyz, &(range_1), &(local_1));
-    var _S28 : u32 = envcap_street_map_id_0(street_map_texture_0, street_map_sampler_0, _S1.xy, _S1.z, _S2.xz);
-    var _S29 : vec4<f32> = vec4<f32>(f32(_S28 + _S27 + range_1.w), local_1);
-    _S24 = _S29;
-    var _S30 : _S25 = _S25( _S29 );
-    return _S30;
+    var _S28 : u32 = envcap_city_locate_0(street_map_texture_0, street_map_sampler_0, _S27.c_0.xy, _S27.c_0.z, frames_texture_0, frames_sampler_0, ranges_texture_0, ranges_sampler_0, _S27.a_0.xyz, &(range_1), &(local_1));
+    var _S29 : u32 = envcap_street_map_id_0(street_map_texture_0, street_map_sampler_0, _S1.xy, _S1.z, _S2.xz);
+    var _S30 : vec4<f32> = vec4<f32>(f32(_S29 + _S28 + range_1.w) + f32(envcap_street_map_crossing_0(_S28, range_1.x)), local_1);
+    _S25 = _S30;
+    var _S31 : _S26 = _S26( _S30 );
+    return _S31;
 }
 

@@ -35,12 +35,12 @@ def test_capture_then_evaluate_reports_the_crossing(tmp_path, capsys):
                  "--lobes", "64", "--methods", "nearest,depth_refine", "--no-images", "--quiet"]) == 0
     rep = json.loads((out / "report.json").read_text())
     assert rep["meta"]["crossing"]["crossings"] == ["east_west+north_south"]
-    assert rep["meta"]["crossing"]["crossing_lookup"] == "shared"
+    assert rep["meta"]["crossing"]["crossing_lookup"] == "direction"
     inside = [r for r in rep["positions"] if r["in_crossing"]]
     # inside = in both corridors: |x| <= 6 and |z| <= 7
     assert inside and all(abs(r["position"][0]) <= 6 and abs(r["position"][2]) <= 7 for r in inside)
     assert all(r["in_crossing"] == (abs(r["position"][0]) <= 6 and abs(r["position"][2]) <= 7) for r in rep["positions"])
-    assert "### Positions inside a crossing (east_west+north_south; lookup `shared`" in (out / "report.md").read_text()
+    assert "### Positions inside a crossing (east_west+north_south; lookup `direction`" in (out / "report.md").read_text()
     capsys.readouterr()
     assert main(["capture", str(scene), "--out", str(tmp_path / "plain"), "--resolution", "8", "--spacing", "10",
                  "--quiet", "--no-exr", "--no-previews", "--no-crossings"]) == 0

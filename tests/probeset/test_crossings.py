@@ -133,5 +133,21 @@ def test_the_evaluator_resolves_a_crossing_to_its_probe(crossed):
     assert list(st.layers) == [5, 6, centre, 7, 8] and st.positions[2].tolist() == [0.0, 2.0, 0.0]
     np.testing.assert_allclose(st.planes[2, :2], [-6.0, 6.0], atol=1e-3)    # its neighbour's fitted facades (x = -6, 6)
     assert list(shared.local_street("east_west", inside).layers) == list(off.local_street("east_west", inside).layers)
+    # direction: each direction on the street it looks down (east_west along x, north_south along z)
+    direction = Predictor(crossed, crossings="direction")
+    d = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    w = np.full(3, 64.0)
+    got = direction.street_rgba("planes_mip", "north_south", inside, d, w)
+    want = [shared.street_rgba("planes_mip", "east_west", inside, d[:1], w[:1])[0],
+            shared.street_rgba("planes_mip", "north_south", inside, d[1:2], w[:1])[0],
+            shared.street_rgba("planes_mip", "east_west", inside, d[2:], w[:1])[0]]   # straight up: a tie, the owner
+    np.testing.assert_array_equal(got, np.array(want))
+    assert not np.array_equal(want[0], shared.street_rgba("planes_mip", "north_south", inside, d[:1], w[:1])[0])
+    # a meeting street turned differently from the owner keeps its own probes in mode direction
+    # (the crossing probe's cube is in the owner's frame)
+    import dataclasses
+    direction.streets["east_west"] = dataclasses.replace(direction.streets["east_west"], yaw_deg=0.5)   # the owner
+    assert list(direction._direction_street("north_south", 0, inside, "nominal").layers) == [5, 6, 7, 8]
+    assert centre in direction._direction_street("east_west", 0, inside, "nominal").layers
     for p in (probe, shared):      # outside the region: per street, as without crossings
         assert list(p.local_street("north_south", outside).layers) == list(off.local_street("north_south", outside).layers)
