@@ -23,7 +23,7 @@ from envcap.core.street_frame import plan_rotation
 from envcap.crowd.camera import Camera
 from envcap.crowd.inputs import ALBEDO, CrowdAvatar
 from envcap.crowd.instances import TEXELS_PER_JOINT, CrowdPose, instance_texture
-from envcap.crowd.sphere_buffer import MAX_SPHERES, NEIGHBOURS, neighbour_texture, nearest_neighbours
+from envcap.crowd.sphere_buffer import MAX_SPHERES, NEIGHBOURS, SELF_CLAMP, neighbour_texture, nearest_neighbours
 from envcap.dynamic.crowd_lod import NEAR_FACTOR
 from envcap.evaluate.shading import Material
 from envcap.gpu.cube_array import CubeArrayTexture, cube_texture
@@ -45,7 +45,7 @@ def crowd_sources(method_glsl: str, target: str = "gl450", targets: bool = False
     """``(vertex, fragment)`` GLSL of the crowd for a shader ``target`` (includes expanded)."""
     head = prologue(target)
     defs = f"#define CROWD_SAMPLE {method_glsl}\n#define CROWD_NEIGHBOURS {NEIGHBOURS}\n" \
-           f"#define ENVCAP_MAX_SPHERES {MAX_SPHERES}\n" + ("#define CROWD_TARGETS\n" if targets else "")
+           f"#define ENVCAP_MAX_SPHERES {MAX_SPHERES}\n#define CROWD_SELF_CLAMP {SELF_CLAMP!r}\n" + ("#define CROWD_TARGETS\n" if targets else "")
     vert = head + "#include \"crowd/crowd_vert.glsl\"\n"
     frag = head + defs + "#include \"crowd/crowd_frag.glsl\"\n"
     return expand_includes(vert), expand_includes(frag)
