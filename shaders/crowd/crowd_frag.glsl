@@ -17,7 +17,8 @@
 // the sun crowd_sun_dir (unit, towards the sun, world), crowd_sun_e (irradiance normal to it),
 // crowd_sun_cos (cos of its angular radius), crowd_exposure.
 // Textures: probes (unit 3), sky (unit 4), crowd_instances (unit 5: crowd_vert.glsl),
-// crowd_neighbours (unit 6, RGBA32F, row = walker, 2K texels; envcap.crowd.sphere_buffer).
+// crowd_neighbours (unit 6, RGBA32F, row = walker, 2K texels; envcap.crowd.sphere_buffer),
+// crowd_distance (unit 7, CROWD_DISTANCE: the method depth_refine's 1/distance cube array).
 
 #ifndef CROWD_SAMPLE
 #define CROWD_SAMPLE envcap_sample_oblique
@@ -40,6 +41,16 @@
 ENVCAP_BINDING(3) uniform ENVCAP_PROBES_SAMPLER probes;
 ENVCAP_BINDING(4) uniform samplerCube sky;
 
+#ifdef CROWD_DISTANCE
+// depth_refine: the probes' inverse distance (1/m in .r, NEAREST; runtime/envcap_depth_refine.glsl)
+#include "runtime/envcap_depth_refine.glsl"
+ENVCAP_BINDING(7) uniform ENVCAP_DISTANCE_SAMPLER crowd_distance;
+vec3 crowd_sample_depth_refine(ENVCAP_PROBES_SAMPLER probes_, ENVCAP_SKY_SAMPLER sky_, vec3 x, vec3 d, float w,
+                               EnvcapStreet street)
+{
+    return envcap_sample_depth_refine(probes_, sky_, crowd_distance, x, d, w, street);
+}
+#endif
 ENVCAP_BINDING(5) uniform highp sampler2D crowd_instances;
 ENVCAP_BINDING(6) uniform highp sampler2D crowd_neighbours;
 uniform int crowd_joint_count;
