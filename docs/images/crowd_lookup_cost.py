@@ -48,7 +48,8 @@ def main() -> None:
                 r.release()
     print("| method | --terms probes | --terms neighbours |\n| --- | ---: | ---: |")
     for m in METHODS:
-        cells = [f"{res[(m, t)] * 1e3:.0f} ms ({res[(m, t)] / res[('planes_mip', t)]:.2f}x)" for t in ("probes", "neighbours")]
+        cells = [f"{res[(m, t)] * 1e3:.0f} ms ({res[(m, t)] / res[('planes_mip', t)]:.2f}x)"
+                 for t in ("probes", "neighbours")]
         print(f"| {m} | {' | '.join(cells)} |")
 
 
