@@ -18,12 +18,13 @@ import moderngl
 import numpy as np
 from numpy.typing import NDArray
 
+from envcap.core.inverse_distance import inverse_distance
 from envcap.core.resources import expand_includes, shader_source
 from envcap.core.street_frame import plan_rotation
 from envcap.crowd.camera import Camera
-from envcap.crowd.inputs import ALBEDO, CrowdAvatar
+from envcap.crowd.inputs import ALBEDO, CrowdAvatar, crowd_function
 from envcap.crowd.instances import TEXELS_PER_JOINT, CrowdPose, instance_texture
-from envcap.crowd.sphere_buffer import MAX_SPHERES, NEIGHBOURS, neighbour_texture, nearest_neighbours
+from envcap.crowd.sphere_buffer import MAX_SPHERES, NEIGHBOURS, SELF_CLAMP, neighbour_texture, nearest_neighbours
 from envcap.dynamic.crowd_lod import NEAR_FACTOR
 from envcap.evaluate.shading import Material
 from envcap.gpu.cube_array import CubeArrayTexture, cube_texture
@@ -41,11 +42,19 @@ TARGETS = ("color", "position", "normal", "self0", "self1", "eq3", "self_term", 
 MAX_LOBES = 3
 
 
+DISTANCE_UNIT = 7
+"""Texture unit of the probes' 1/distance cube array (``crowd_distance``) for ``depth_refine``."""
+
+
 def crowd_sources(method_glsl: str, target: str = "gl450", targets: bool = False) -> tuple[str, str]:
-    """``(vertex, fragment)`` GLSL of the crowd for a shader ``target`` (includes expanded)."""
+    """``(vertex, fragment)`` GLSL of the crowd for a shader ``target`` (includes expanded).
+    ``crowd_sample_depth_refine`` (:func:`envcap.crowd.inputs.crowd_function`) also defines
+    ``CROWD_DISTANCE`` (the distance texture and the wrapper)."""
     head = prologue(target)
+    if method_glsl == "crowd_sample_depth_refine":
+        method_glsl += "\n#define CROWD_DISTANCE"
     defs = f"#define CROWD_SAMPLE {method_glsl}\n#define CROWD_NEIGHBOURS {NEIGHBOURS}\n" \
-           f"#define ENVCAP_MAX_SPHERES {MAX_SPHERES}\n" + ("#define CROWD_TARGETS\n" if targets else "")
+           f"#define ENVCAP_MAX_SPHERES {MAX_SPHERES}\n#define CROWD_SELF_CLAMP {SELF_CLAMP!r}\n" + ("#define CROWD_TARGETS\n" if targets else "")
     vert = head + "#include \"crowd/crowd_vert.glsl\"\n"
     frag = head + defs + "#include \"crowd/crowd_frag.glsl\"\n"
     return expand_includes(vert), expand_includes(frag)
@@ -89,9 +98,16 @@ class CrowdRenderer:
         self.joint_count = avatar.avatar.joint_count
         self.resources: list[Any] = []
         self.probes = CubeArrayTexture(ps.levels)
+        self.distance: CubeArrayTexture | None = None
+        if method.needs_distance:
+            if ps.distance is None:
+                raise ValueError(f"method {method.name} needs the probe set's distance texture (inverse_distance.ktx2)")
+            inv = inverse_distance(ps.distance)
+            self.distance = CubeArrayTexture([np.concatenate([inv[..., None], np.zeros(inv.shape + (3,), np.float32)],
+                                                             axis=-1)], filter="nearest")
         self.texture_bytes = sum(int(np.prod(lv.shape)) * 4 for lv in [*ps.levels, *ps.sky_levels])
         self.sky = cube_texture(ctx, ps.sky_levels)
-        vert, frag = crowd_sources(method.glsl or "envcap_sample_nearest", targets=targets)
+        vert, frag = crowd_sources(crowd_function(method) or "envcap_sample_nearest", targets=targets)
         self.prog = self._keep(ctx.program(vertex_shader=vert, fragment_shader=frag))
         self.sources = (vert, frag)
         a = avatar.avatar
@@ -191,7 +207,11 @@ class CrowdRenderer:
             self.sky.use(4)
             self.instances.use(5)
             self.neighbours.use(6)
-            values = {**self.uniforms.values(), **self.material_values,
+            dist = {}
+            if self.distance is not None:
+                self.distance.use(DISTANCE_UNIT)
+                dist = {"crowd_distance": DISTANCE_UNIT}
+            values = {**dist, **self.uniforms.values(), **self.material_values,
                       "crowd_view_proj": vp.T, "crowd_joint_count": self.joint_count,
                       "crowd_to_local": self.to_local.T, "crowd_camera": camera.eye,
                       "crowd_terms": -1 if constant else TERMS[terms], "crowd_sun_dir": self.sun.direction,
@@ -208,3 +228,5 @@ class CrowdRenderer:
         self.resources.clear()
         self.probes.release()
         self.sky.release()
+        if self.distance is not None:
+            self.distance.release()

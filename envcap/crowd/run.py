@@ -15,7 +15,7 @@ import numpy as np
 from envcap.core.budget import check_bytes, format_bytes
 from envcap.crowd.camera import Camera, street_camera
 from envcap.crowd.frames import exposure_of, write_description, write_frame
-from envcap.crowd.inputs import (DEFAULT_METHOD, MATERIAL, CrowdAvatar, crowd_method, default_avatar, material,
+from envcap.crowd.inputs import (MATERIAL, CrowdAvatar, crowd_method, default_avatar, default_method, material,
                                  pick_street, read_avatar, read_probes, runtime_street)
 from envcap.crowd.instances import TEXELS_PER_JOINT, AvatarCycle, pose_crowd
 from envcap.crowd.renderer import TARGETS, CrowdRenderer
@@ -78,8 +78,10 @@ class CrowdJob:
         problem (before any output exists)."""
         if count < 0:
             raise ValueError(f"--avatars must be >= 0, got {count}")
-        m = crowd_method(method or DEFAULT_METHOD)
+        if method is not None:
+            crowd_method(method)                    # a bad name fails before the set is read
         ps = probes if isinstance(probes, ProbeSet) else read_probes(probes)
+        m = crowd_method(method or default_method(ps), ps)
         av = (avatar if isinstance(avatar, CrowdAvatar) else
               default_avatar() if avatar is None else read_avatar(avatar))
         sc = scene_obj if scene_obj is not None else load_scene(scene)

@@ -6,7 +6,8 @@ Per walker ``i``, the host lists its :data:`NEIGHBOURS` nearest other walkers (d
 one-sphere centres, nearest first; ties by index).  The fragment shader
 (``shaders/crowd/crowd_frag.glsl``) then fills the runtime's sphere buffer
 (``envcap_dynamic_spheres.glsl``) for the shading point ``x``: first the self spheres (the two most
-influential blocker bones of the vertex, ``self`` on), then per neighbour in that order (``neighbours``
+influential blocker bones of the triangle's provoking vertex, placed at ``x``: :func:`self_spheres`,
+``self`` on), then per neighbour in that order (``neighbours``
 on): its bone spheres when ``|x - centre| < NEAR_FACTOR * enclosing``, else its one sphere, until
 :data:`MAX_SPHERES` are in; the runtime then keeps the ``SPHERE_CAP`` most occluding.
 :func:`fragment_spheres` is the numpy twin of that fill.
@@ -31,6 +32,10 @@ MAX_SPHERES = 48
 """Spheres a shading point gathers (the runtime's ``ENVCAP_MAX_SPHERES`` in the crowd shader)."""
 SELF_SPHERES = 2
 """Blocker bones per vertex passed to the fragment shader."""
+SELF_CLAMP = 0.7
+"""Each own blocker sphere's radius is at most this times its centre's distance from the shading
+point (``CROWD_SELF_CLAMP`` in ``crowd_frag.glsl``): a fitted sphere of the next limb holds points
+of the body's surface, and unclamped it blocks half the sky there (docs/crowd.md)."""
 ROW_BLOCK = 512
 """Walkers per block of the distance search (memory ``ROW_BLOCK x N`` floats)."""
 
@@ -90,27 +95,41 @@ def fragment_spheres(x: NDArray[np.float64], walker: int, self_spheres: NDArray[
     return SphereBuffer(arr[:, :3], np.maximum(arr[:, 3], 0.0), np.full((len(arr), 3), albedo))
 
 
-def self_spheres(x: NDArray[np.float64], blockers: NDArray, scores: NDArray, spheres: NDArray[np.float64],
-                 heads: NDArray[np.float64]) -> NDArray[np.float64]:
-    """``(V, SELF_SPHERES, 4)`` the spheres the vertex stage passes for skinned vertices ``x``
-    ``(V, 3)`` of one walker (numpy twin of ``crowd_bone_sphere`` in ``shaders/crowd/crowd_vert.glsl``):
-    the two blockers of highest score (``blockers``, ``scores`` ``(V, 4)``), in joint order, each
-    bone sphere (``spheres`` ``(J, 4)`` posed, ``heads`` ``(J, 3)``) slid along its bone from the
-    head ``h`` through the centre ``c`` to ``2c - h`` to the point nearest the vertex; a slid
-    sphere that would hold the vertex keeps its centre; a score <= 0 gives a radius-0 sphere."""
+def self_blockers(blockers: NDArray, scores: NDArray) -> NDArray[np.int64]:
+    """``(V, SELF_SPHERES)`` the blocker joints the vertex stage passes (flat) for each vertex
+    (numpy twin of ``crowd_vert.glsl``): the two of highest score (``blockers``, ``scores``
+    ``(V, 4)``), in joint order, -1 where the score is <= 0."""
     j = np.asarray(blockers)[:, :2].astype(np.int64)
     w = np.asarray(scores, np.float64)[:, :2]
     swap = (j[:, 1] < j[:, 0]) & (w[:, 1] > 0)
     j = np.where(swap[:, None], j[:, ::-1], j)
     w = np.where(swap[:, None], w[:, ::-1], w)
-    out = np.zeros((len(x), SELF_SPHERES, 4))
-    for k in range(SELF_SPHERES):
-        s, h = spheres[j[:, k]], heads[j[:, k]]
+    return np.where(w > 0, j, -1)
+
+
+def self_spheres(x: NDArray[np.float64], joints: NDArray[np.int64], spheres: NDArray[np.float64],
+                 heads: NDArray[np.float64], clamp: float = SELF_CLAMP) -> NDArray[np.float64]:
+    """``(V, SELF_SPHERES, 4)`` the own blocker spheres at shading points ``x`` ``(V, 3)`` of one
+    walker, whose triangles' provoking vertices passed ``joints`` ``(V, SELF_SPHERES)``
+    (:func:`self_blockers`; numpy twin of ``crowd_self_sphere`` in ``shaders/crowd/crowd_frag.glsl``):
+    each bone sphere (``spheres`` ``(J, 4)`` posed, ``heads`` ``(J, 3)``) slid along its bone from
+    the head ``h`` through the centre ``c`` to ``2c - h`` to the point nearest ``x``; a slid sphere
+    that would hold ``x`` keeps its centre; its radius then at most ``clamp`` times the centre's
+    distance from ``x`` (0: no clamp); joint -1 gives a radius-0 sphere."""
+    x = np.asarray(x, np.float64).reshape(-1, 3)
+    js = np.asarray(joints, np.int64).reshape(len(x), -1)
+    out = np.zeros((len(x), js.shape[1], 4))
+    for k in range(js.shape[1]):
+        live = js[:, k] >= 0
+        jj = np.maximum(js[:, k], 0)
+        s, h = spheres[jj], heads[jj]
         e = 2.0 * (s[:, :3] - h)
         ee = np.einsum("ij,ij->i", e, e)
         u = np.where(ee > 0, np.clip(np.einsum("ij,ij->i", x - h, e) / np.where(ee > 0, ee, 1.0), 0.0, 1.0), 0.5)
         p = h + u[:, None] * e
         p = np.where((np.linalg.norm(x - p, axis=1) <= s[:, 3])[:, None], s[:, :3], p)
-        out[:, k] = np.where((w[:, k] > 0)[:, None], np.c_[p, s[:, 3]], 0.0)
+        r = s[:, 3]
+        if clamp > 0:
+            r = np.minimum(r, clamp * np.linalg.norm(p - x, axis=1))
+        out[:, k] = np.where(live[:, None], np.c_[p, r], 0.0)
     return out
-

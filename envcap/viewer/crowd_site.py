@@ -49,6 +49,7 @@ from envcap.crowd.sphere_buffer import MAX_SPHERES, NEIGHBOURS, nearest_neighbou
 from envcap.crowd.walkers import Walkers, place_walkers
 from envcap.dynamic.crowd_lod import NEAR_FACTOR
 from envcap.probeset.manifest import Manifest
+from envcap.runtime import methods
 from envcap.runtime.street import StreetProbes
 
 COUNTS = (8, 16, 32, 64)
@@ -83,6 +84,10 @@ def material_uniforms() -> dict[str, Any]:
     return {"crowd_rho_d": list(map(float, m.rho_d)), "crowd_C": C.reshape(-1).tolist(),
             "crowd_rho_s": rho_s.reshape(-1).tolist(), "crowd_nlobes": len(m.C), "crowd_albedo": ALBEDO}
 
+
+PAGE_METHODS = tuple(n for n in CROWD_METHODS if not methods.get(n).needs_distance)
+"""The lookups the page's crowd runs: the crowd's, less ``depth_refine`` (the page binds no
+1/distance texture for the crowd: its WebGL2 shader has the probes and the sky only)."""
 
 def crowd_glsl() -> tuple[str, str]:
     """``(vertex, fragment)``: :func:`envcap.crowd.renderer.crowd_sources` for the WebGL2 target
@@ -184,7 +189,7 @@ class CrowdSite:
             "joints": a.joint_count, "texels_per_joint": TEXELS_PER_JOINT, "neighbours": NEIGHBOURS,
             "max_spheres": MAX_SPHERES, "near_factor": NEAR_FACTOR, "fps": FPS, "frames": FRAMES, "seed": SEED,
             "counts": {str(n): f"api/crowd/walkers_{n}.bin" for n in COUNTS}, "default_count": DEFAULT_COUNT,
-            "terms": TERMS, "methods": list(CROWD_METHODS), "default_method": DEFAULT_METHOD,
+            "terms": TERMS, "methods": list(PAGE_METHODS), "default_method": DEFAULT_METHOD,
             "material": material_uniforms(),
             "sun": {"direction": sun.direction.tolist(), "irradiance": sun.irradiance.tolist(), "cos_radius": sun.cos_radius},
         }

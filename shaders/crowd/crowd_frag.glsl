@@ -17,7 +17,8 @@
 // the sun crowd_sun_dir (unit, towards the sun, world), crowd_sun_e (irradiance normal to it),
 // crowd_sun_cos (cos of its angular radius), crowd_exposure.
 // Textures: probes (unit 3), sky (unit 4), crowd_instances (unit 5: crowd_vert.glsl),
-// crowd_neighbours (unit 6, RGBA32F, row = walker, 2K texels; envcap.crowd.sphere_buffer).
+// crowd_neighbours (unit 6, RGBA32F, row = walker, 2K texels; envcap.crowd.sphere_buffer),
+// crowd_distance (unit 7, CROWD_DISTANCE: the method depth_refine's 1/distance cube array).
 
 #ifndef CROWD_SAMPLE
 #define CROWD_SAMPLE envcap_sample_oblique
@@ -28,6 +29,9 @@
 #ifndef ENVCAP_MAX_SPHERES
 #define ENVCAP_MAX_SPHERES 48
 #endif
+#ifndef CROWD_SELF_CLAMP
+#define CROWD_SELF_CLAMP 0.7
+#endif
 #define ENVCAP_SPHERES_GLOBAL
 #define ENVCAP_DYNAMIC_ENVIRONMENT crowd_environment
 
@@ -37,6 +41,16 @@
 ENVCAP_BINDING(3) uniform ENVCAP_PROBES_SAMPLER probes;
 ENVCAP_BINDING(4) uniform samplerCube sky;
 
+#ifdef CROWD_DISTANCE
+// depth_refine: the probes' inverse distance (1/m in .r, NEAREST; runtime/envcap_depth_refine.glsl)
+#include "runtime/envcap_depth_refine.glsl"
+ENVCAP_BINDING(7) uniform ENVCAP_DISTANCE_SAMPLER crowd_distance;
+vec3 crowd_sample_depth_refine(ENVCAP_PROBES_SAMPLER probes_, ENVCAP_SKY_SAMPLER sky_, vec3 x, vec3 d, float w,
+                               EnvcapStreet street)
+{
+    return envcap_sample_depth_refine(probes_, sky_, crowd_distance, x, d, w, street);
+}
+#endif
 ENVCAP_BINDING(5) uniform highp sampler2D crowd_instances;
 ENVCAP_BINDING(6) uniform highp sampler2D crowd_neighbours;
 uniform int crowd_joint_count;
@@ -55,8 +69,7 @@ uniform float crowd_near_factor;
 
 in vec3 v_position;
 in vec3 v_normal;
-in vec4 v_self0;
-in vec4 v_self1;
+flat in ivec2 v_blockers;
 flat in int v_walker;
 
 ENVCAP_OUT(0) out vec4 out_color;
@@ -71,6 +84,27 @@ ENVCAP_OUT(7) out vec4 out_all_term;   // bounced - blocked, own bones and neigh
 #endif
 
 vec3 g_local;   // the shading point, street-local (for crowd_environment)
+vec4 g_self0;   // the own blocker bones' spheres at the shading point (crowd_self_sphere)
+vec4 g_self1;
+
+// Blocker bone sphere j (< 0: none, radius 0) of the walker at the shading point x (numpy twin:
+// envcap.crowd.sphere_buffer.self_spheres): slid along its bone from the joint's head h through
+// the fitted centre c to 2c - h to the point nearest x, u = clamp((x - h).(b - h) / |b - h|^2);
+// a slid sphere that would hold x keeps its fitted centre; its radius then at most
+// CROWD_SELF_CLAMP times its centre's distance from x (a fitted sphere of the next limb holds
+// points of the body's surface: unclamped it blocks half the sky there).
+vec4 crowd_self_sphere(int walker, int j, vec3 x)
+{
+    if (j < 0) return vec4(0.0);
+    vec4 s = texelFetch(crowd_instances, ivec2(4 * crowd_joint_count + j, walker), 0);
+    vec3 h = texelFetch(crowd_instances, ivec2(5 * crowd_joint_count + j, walker), 0).xyz;
+    vec3 e = 2.0 * (s.xyz - h);
+    float ee = dot(e, e);
+    float u = ee > 0.0 ? clamp(dot(x - h, e) / ee, 0.0, 1.0) : 0.5;
+    vec3 p = h + u * e;
+    if (length(x - p) <= s.w) p = s.xyz;
+    return vec4(p, min(s.w, CROWD_SELF_CLAMP * length(p - x)));
+}
 
 // The cos^w-convolved environment along the world direction dir seen from the shading point.
 vec3 crowd_environment(vec3 dir, float w)
@@ -94,8 +128,8 @@ void crowd_gather_spheres(vec3 x, bool self_, bool neighbours)
 {
     envcap_sphere_count = 0;
     if (self_) {
-        crowd_push(v_self0);
-        crowd_push(v_self1);
+        crowd_push(g_self0);
+        crowd_push(g_self1);
     }
     if (!neighbours) return;
     for (int m = 0; m < CROWD_NEIGHBOURS; ++m) {
@@ -181,12 +215,14 @@ void main()
     vec3 T = normalize(cross(abs(N.y) < 0.9 ? vec3(0.0, 1.0, 0.0) : vec3(1.0, 0.0, 0.0), N));
     vec3 B = cross(N, T);
     g_local = crowd_to_local * x;
+    g_self0 = crowd_self_sphere(v_walker, v_blockers.x, x);
+    g_self1 = crowd_self_sphere(v_walker, v_blockers.y, x);
     vec3 L = crowd_eq3(T, B, N, v);
 #ifdef CROWD_TARGETS
     out_position = vec4(x, float(v_walker));
     out_normal = vec4(N, 1.0);
-    out_self0 = v_self0;
-    out_self1 = v_self1;
+    out_self0 = g_self0;
+    out_self1 = g_self1;
     out_eq3 = vec4(L, 1.0);
     crowd_gather_spheres(x, true, false);
     out_self_term = vec4(crowd_dynamic(x, T, B, N, v), 1.0);

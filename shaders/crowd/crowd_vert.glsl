@@ -1,10 +1,9 @@
 #ifndef ENVCAP_CROWD_VERT_GLSL
 #define ENVCAP_CROWD_VERT_GLSL
 // envcap crowd, vertex stage: instanced GPU skinning of one avatar mesh, one instance per walker,
-// and the vertex's two most influential blocker bones placed on their bone segments (the paper's
-// dot-product projection).  Common subset of GLSL 4.50 / ES 3.00: a target prologue
+// and the vertex's two most influential blocker bones (flat; crowd_frag.glsl places their spheres).  Common subset of GLSL 4.50 / ES 3.00: a target prologue
 // (envcap.runtime.shader_targets.prologue) goes first.  docs/crowd.md; numpy twin of the
-// skinning: envcap.dynamic.gltf_skin.skin (tests/crowd/test_crowd_spheres.py checks the texture).
+// skinning: envcap.dynamic.gltf_skin.skin, of the blockers: envcap.crowd.sphere_buffer.self_blockers.
 //
 // crowd_instances (RGBA32F, row = walker, 6 J texels; envcap.crowd.instances): texels 4j..4j+3
 // the columns of joint matrix j (root included), 4J + j bone sphere j (centre, radius), 5J + j
@@ -23,8 +22,7 @@ ENVCAP_IN(5) in vec4 in_blocker_weights;
 
 out vec3 v_position;               // skinned, relative to the render origin (m)
 out vec3 v_normal;                 // skinned, unit (world)
-out vec4 v_self0;                  // blocker bone sphere: centre, radius (0: none)
-out vec4 v_self1;
+flat out ivec2 v_blockers;         // the two blocker joints in joint order (-1: none)
 flat out int v_walker;
 
 vec4 crowd_texel(int walker, int texel)
@@ -36,22 +34,6 @@ mat4 crowd_joint(int walker, int j)
 {
     return mat4(crowd_texel(walker, 4 * j), crowd_texel(walker, 4 * j + 1),
                 crowd_texel(walker, 4 * j + 2), crowd_texel(walker, 4 * j + 3));
-}
-
-// Bone sphere j of the walker slid along its bone to the point nearest x: the bone runs from the
-// joint's head h through the fitted centre c to 2c - h; u = clamp((x - h).(b - h) / |b - h|^2).
-// A slid sphere that would hold x keeps its fitted centre.  score <= 0: no sphere (radius 0).
-vec4 crowd_bone_sphere(int walker, int j, float score, vec3 x)
-{
-    if (!(score > 0.0)) return vec4(0.0);
-    vec4 s = crowd_texel(walker, 4 * crowd_joint_count + j);
-    vec3 h = crowd_texel(walker, 5 * crowd_joint_count + j).xyz;
-    vec3 e = 2.0 * (s.xyz - h);
-    float ee = dot(e, e);
-    float u = ee > 0.0 ? clamp(dot(x - h, e) / ee, 0.0, 1.0) : 0.5;
-    vec3 p = h + u * e;
-    if (length(x - p) <= s.w) p = s.xyz;
-    return vec4(p, s.w);
 }
 
 void main()
@@ -66,13 +48,12 @@ void main()
     float ln = length(n);
     v_position = p.xyz;
     v_normal = ln > 0.0 ? n / ln : vec3(0.0, 1.0, 0.0);
-    // the two slots in joint order, not score order: where two bones' scores cross between
-    // neighbouring vertices their spheres stay in their slots (no sphere interpolated between them)
+    // the two blockers in joint order, flat: the fragment stage places their spheres (the
+    // triangle's provoking vertex names the bones; no sphere is interpolated between two bones)
     bool swap_ = in_blockers.y < in_blockers.x && in_blocker_weights.y > 0.0;
     vec2 js = swap_ ? in_blockers.yx : in_blockers.xy;
     vec2 ws = swap_ ? in_blocker_weights.yx : in_blocker_weights.xy;
-    v_self0 = crowd_bone_sphere(walker, int(js.x), ws.x, p.xyz);
-    v_self1 = crowd_bone_sphere(walker, int(js.y), ws.y, p.xyz);
+    v_blockers = ivec2(ws.x > 0.0 ? int(js.x) : -1, ws.y > 0.0 ? int(js.y) : -1);
     v_walker = walker;
     gl_Position = crowd_view_proj * vec4(p.xyz, 1.0);
 }

@@ -6,7 +6,7 @@ import subprocess
 
 import pytest
 
-from envcap.crowd.inputs import CROWD_METHODS
+from envcap.crowd.inputs import CROWD_METHODS, crowd_function
 from envcap.crowd.renderer import crowd_sources
 from envcap.runtime import methods
 from envcap.runtime.shader_matrix import tool
@@ -32,7 +32,8 @@ def test_crowd_stages_compile_for_desktop_and_webgl2(tmp_path, target):
 
 def test_every_crowd_method_and_the_test_targets_compile_for_gl450(tmp_path):
     for name in CROWD_METHODS:
-        _, frag = crowd_sources(methods.get(name).glsl, "gl450", targets=name == "fitted_planes_oblique")
+        _, frag = crowd_sources(crowd_function(methods.get(name)), "gl450", targets=name in ("fitted_planes_oblique",
+                                                                                            "depth_refine"))
         rc, log = _validate(tmp_path, name, "frag", frag)
         assert rc == 0, f"{name}:\n{log[-2000:]}"
 

@@ -5,6 +5,7 @@ envcap.crowd.sphere_buffer.fragment_spheres gathers), from the shader's float ta
 normal, the self spheres its vertex stage placed)."""
 
 import numpy as np
+import pytest
 
 from envcap.crowd.camera import Camera
 from envcap.crowd.inputs import ALBEDO, material
@@ -14,8 +15,13 @@ from envcap.crowd.sphere_buffer import nearest_neighbours
 from envcap.crowd.twin import CrowdTwin
 
 
-def test_glsl_terms_equal_the_numpy_twin(canyon_probe_dir, gl_ctx):
-    job = CrowdJob.prepare("canyon", canyon_probe_dir, 12, size=(64, 48), seed=5)
+@pytest.mark.parametrize("probe_dir, method", [("canyon_probe_dir", "fitted_planes_oblique"),
+                                               ("canyon_distance_dir", "depth_refine")])
+def test_glsl_terms_equal_the_numpy_twin(probe_dir, method, gl_ctx, request):
+    """Default lookup of each set: fitted_planes_oblique without the distance texture,
+    depth_refine (the texture bound) with it."""
+    job = CrowdJob.prepare("canyon", request.getfixturevalue(probe_dir), 12, size=(64, 48), seed=5)
+    assert job.method.name == method
     r = job.renderer(gl_ctx, targets=True)
     try:
         cycle = AvatarCycle.of(job.avatar.avatar, job.avatar.spheres)

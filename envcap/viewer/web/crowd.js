@@ -19,8 +19,8 @@ void main() {
     crowd_shade();
     if (crowd_exposure == -1.0) out_color = vec4(v_position, float(v_walker + 1));   // tests: the shading point, walker + 1
     else if (crowd_exposure == -2.0) out_color = vec4(normalize(v_normal), 1.0);
-    else if (crowd_exposure == -3.0) out_color = v_self0;
-    else if (crowd_exposure == -4.0) out_color = v_self1;
+    else if (crowd_exposure == -3.0) out_color = g_self0;
+    else if (crowd_exposure == -4.0) out_color = g_self1;
     else if (crowd_exposure > 0.0) {
         vec3 c = out_color.rgb * crowd_exposure;
         c = c / (1.0 + c);
@@ -159,7 +159,7 @@ export class Crowd {
   // Tests: the crowd alone into a width x height RGBA32F target cleared to 0 (linear radiance,
   // alpha 1 on walkers), rows from the bottom; `view` {viewProj (16, column-major), eye}.
   // `output`: 0 radiance, -1 the shading point (render frame; w: walker + 1), -2 the interpolated
-  // normal, -3 / -4 the self spheres its vertices placed (crowd_vert.glsl v_self0 / v_self1).
+  // normal, -3 / -4 the self spheres the fragment placed (crowd_frag.glsl g_self0 / g_self1).
   renderLinear(view, street, tex, pageMethod, width, height, output = 0) {
     const gl = this.gl, fbo = gl.createFramebuffer(), color = gl.createTexture(), depth = gl.createRenderbuffer();
     gl.bindTexture(gl.TEXTURE_2D, color);
