@@ -6,11 +6,12 @@ origin, m); OpenGL clip conventions (``z`` in [-1, 1], right-handed view looking
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+
+from envcap.core.view_matrices import look_at, perspective
 
 EYE_HEIGHT = 4.0
 """Camera height (m) above the ground of the span's start."""
@@ -31,24 +32,11 @@ class Camera:
 
     def view(self) -> NDArray[np.float64]:
         """World-to-view matrix."""
-        f = self.target - self.eye
-        f = f / np.linalg.norm(f)
-        s = np.cross(f, [0.0, 1.0, 0.0])
-        s = s / np.linalg.norm(s)
-        u = np.cross(s, f)
-        m = np.eye(4)
-        m[0, :3], m[1, :3], m[2, :3] = s, u, -f
-        m[:3, 3] = -m[:3, :3] @ self.eye
-        return m
+        return look_at(self.eye, self.target, [0.0, 1.0, 0.0])
 
     def projection(self) -> NDArray[np.float64]:
         """View-to-clip matrix (perspective)."""
-        t = 1.0 / math.tan(math.radians(self.fov_y_deg) / 2)
-        m = np.zeros((4, 4))
-        m[0, 0], m[1, 1] = t / self.aspect, t
-        m[2, 2], m[2, 3] = (FAR + NEAR) / (NEAR - FAR), 2 * FAR * NEAR / (NEAR - FAR)
-        m[3, 2] = -1.0
-        return m
+        return perspective(self.fov_y_deg, self.aspect, NEAR, FAR)
 
     def view_proj(self) -> NDArray[np.float64]:
         return self.projection() @ self.view()

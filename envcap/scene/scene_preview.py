@@ -14,38 +14,11 @@ from numpy.typing import NDArray
 from PIL import Image, PngImagePlugin
 
 from envcap.core.resources import shader_source
+from envcap.core.view_matrices import look_at, ortho, perspective
 from envcap.outputs import atomic_output_file
 from envcap.outputs.guard import check_file_replaceable
 from envcap.outputs.marker import PNG_MARK, png_marked
 from envcap.scene.model import Scene, Street
-
-
-def _look_at(eye: NDArray[np.float64], target: NDArray[np.float64], up: NDArray[np.float64]) -> NDArray[np.float64]:
-    f = target - eye
-    f /= np.linalg.norm(f)
-    s = np.cross(f, up)
-    s /= np.linalg.norm(s)
-    u = np.cross(s, f)
-    m = np.eye(4)
-    m[0, :3], m[1, :3], m[2, :3] = s, u, -f
-    m[:3, 3] = -m[:3, :3] @ eye
-    return m
-
-
-def _perspective(fovy_deg: float, aspect: float, near: float, far: float) -> NDArray[np.float64]:
-    f = 1.0 / np.tan(np.deg2rad(fovy_deg) / 2)
-    m = np.zeros((4, 4))
-    m[0, 0], m[1, 1] = f / aspect, f
-    m[2, 2], m[2, 3] = (far + near) / (near - far), 2 * far * near / (near - far)
-    m[3, 2] = -1
-    return m
-
-
-def _ortho(l: float, r: float, b: float, t: float, n: float, f: float) -> NDArray[np.float64]:
-    m = np.eye(4)
-    m[0, 0], m[1, 1], m[2, 2] = 2 / (r - l), 2 / (t - b), -2 / (f - n)
-    m[:3, 3] = -(r + l) / (r - l), -(t + b) / (t - b), -(f + n) / (f - n)
-    return m
 
 
 def street_view_matrix(street: Street, aspect: float) -> NDArray[np.float64]:
@@ -57,7 +30,7 @@ def street_view_matrix(street: Street, aspect: float) -> NDArray[np.float64]:
     eye[street.cross_index] = tgt[street.cross_index] = street.center_line
     eye[1], tgt[1] = 1.7, 8.0
     eye, tgt = street.to_world(eye), street.to_world(tgt)  # a framed street's frame to the world
-    return _perspective(70.0, aspect, 0.1, 3000.0) @ _look_at(eye, tgt, np.array([0.0, 1.0, 0.0]))
+    return perspective(70.0, aspect, 0.1, 3000.0) @ look_at(eye, tgt, np.array([0.0, 1.0, 0.0]))
 
 
 def top_view_matrix(scene: Scene, margin: float = 20.0) -> tuple[NDArray[np.float64], float]:
@@ -75,9 +48,9 @@ def top_view_matrix(scene: Scene, margin: float = 20.0) -> tuple[NDArray[np.floa
     pts = np.array(pts)
     x0, z0 = pts.min(0)[[0, 2]] - margin
     x1, z1 = pts.max(0)[[0, 2]] + margin
-    view = _look_at(np.array([0.0, 1000.0, 0.0]), np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, -1.0]))
+    view = look_at(np.array([0.0, 1000.0, 0.0]), np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, -1.0]))
     # in view space: x_view = x_world, y_view = -z_world
-    proj = _ortho(x0, x1, -z1, -z0, 1.0, 2000.0)
+    proj = ortho(x0, x1, -z1, -z0, 1.0, 2000.0)
     return proj @ view, (x1 - x0) / (z1 - z0)
 
 
