@@ -51,7 +51,9 @@ void main() {{
 """
 
 
-def _as_columns(name: str, a: Any) -> NDArray[np.float32]:
+def as_columns(name: str, a: Any) -> NDArray[np.float32]:
+    """Input ``name`` as the harness stores it: ``(n,)`` or ``(n, k)`` (k <= 4) -> float32 ``(n, 4)``,
+    zero-padded (one ``vec4`` per index in a std430 buffer)."""
     arr = np.asarray(a, dtype=np.float32)
     if arr.ndim == 1:
         arr = arr[:, None]
@@ -96,7 +98,7 @@ def run_glsl(ctx: moderngl.Context, body: str, inputs: Mapping[str, Any], output
     """
     if not inputs:
         raise ValueError("run_glsl needs at least one input array")
-    cols = {k: _as_columns(k, v) for k, v in inputs.items()}
+    cols = {k: as_columns(k, v) for k, v in inputs.items()}
     ns = {a.shape[0] for a in cols.values()}
     if len(ns) != 1:
         raise ValueError(f"inputs must all have the same length, got {sorted(ns)}")

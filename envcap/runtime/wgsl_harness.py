@@ -28,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from envcap.core.resources import expand_includes
+from envcap.gpu.glsl_harness import as_columns
 from envcap.runtime.wgsl import WGSL_TARGET, texture_binding, translate
 from envcap.runtime.shader_targets import prologue
 
@@ -92,17 +93,6 @@ def build_source(body: str, inputs: Sequence[str], outputs: Sequence[str], *, in
     return expand_includes(src)
 
 
-def _as_columns(name: str, a: Any) -> NDArray[np.float32]:
-    arr = np.asarray(a, dtype=np.float32)
-    if arr.ndim == 1:
-        arr = arr[:, None]
-    if arr.ndim != 2 or not 1 <= arr.shape[1] <= 4:
-        raise ValueError(f"input '{name}' must have shape (n,) or (n, k) with k <= 4, got {arr.shape}")
-    out = np.zeros((arr.shape[0], 4), dtype=np.float32)
-    out[:, : arr.shape[1]] = arr
-    return out
-
-
 _device = None
 
 
@@ -162,7 +152,7 @@ def run_wgsl(body: str, inputs: Mapping[str, Any], outputs: Mapping[str, int], *
     import wgpu  # noqa: PLC0415
     if not inputs:
         raise ValueError("run_wgsl needs at least one input array")
-    cols = {k: _as_columns(k, v) for k, v in inputs.items()}
+    cols = {k: as_columns(k, v) for k, v in inputs.items()}
     ns = {a.shape[0] for a in cols.values()}
     if len(ns) != 1 or min(ns) < 1 or max(ns) > LOCAL_SIZE * MAX_GROUPS:
         raise ValueError(f"inputs must all have the same length in 1..{LOCAL_SIZE * MAX_GROUPS}, got {sorted(ns)}")
