@@ -13,10 +13,9 @@ import numpy as np
 from PIL import Image
 
 from envcap.crowd.camera import Camera
-from envcap.crowd.frames import exposure_of
 from envcap.crowd.instances import AvatarCycle, pose_crowd
 from envcap.crowd.run import CrowdJob
-from envcap.formats.png_preview import tonemap
+from envcap.formats.png_preview import auto_exposure, tonemap
 from envcap.gpu.context import create_context
 from envcap.probeset.bake import bake_probe_set
 from envcap.scene import load_scene
@@ -33,7 +32,7 @@ def main() -> None:
     try:
         pose = pose_crowd(job.walkers, AvatarCycle.of(job.avatar.avatar, job.avatar.spheres), 0.4, r.origin)
         frame = r.render(pose, job.camera(r.origin), "neighbours")["color"]
-        Image.fromarray(tonemap(frame, exposure_of(frame))).save(HERE / "crowd_frame.png")
+        Image.fromarray(tonemap(frame, auto_exposure(frame))).save(HERE / "crowd_frame.png")
         hips = pose.feet - r.origin + [0.0, 1.0, 0.0]
         k = int(np.argmin(np.linalg.norm(hips - hips.mean(axis=0), axis=1)))
         close = Camera(hips[k] + [3.5, 0.4, 2.5], hips[k] + [-1.0, -0.2, 0.0], 320 / 400)
@@ -41,7 +40,7 @@ def main() -> None:
         job = CrowdJob.prepare("canyon", probes, 60, size=(320, 400), seed=3, scene_obj=scene)
         r = job.renderer(ctx)
         panels = [r.render(pose, close, t)["color"] for t in ("probes", "self", "neighbours")]
-        e = exposure_of(panels[0])
+        e = auto_exposure(panels[0])
         Image.fromarray(np.concatenate([tonemap(p, e) for p in panels], axis=1)).save(HERE / "crowd_terms.png")
     finally:
         r.release()

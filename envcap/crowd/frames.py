@@ -1,5 +1,5 @@
 """The crowd's output directory: ``frame_0000.png`` ... (tone-mapped, one exposure for the whole
-run so that frames compare) and ``crowd.json`` (what was drawn: seed, terms, method, avatar, the
+run so that frames compare: :func:`envcap.formats.png_preview.auto_exposure` of the first) and ``crowd.json`` (what was drawn: seed, terms, method, avatar, the
 walkers' feet per frame, timings).  Written into the staged directory of
 :func:`envcap.outputs.atomic_output_dir` (nothing half-written)."""
 
@@ -13,19 +13,12 @@ import numpy as np
 from numpy.typing import NDArray
 from PIL import Image
 
-from envcap.formats.png_preview import auto_exposure, tonemap
+from envcap.formats.png_preview import tonemap
 
 FRAME_NAME = "frame_{:04d}.png"
 """File name of frame ``i``."""
 DESCRIPTION = "crowd.json"
 """The crowd's description."""
-
-
-def exposure_of(first: NDArray[np.float32]) -> float:
-    """The run's exposure: :func:`envcap.formats.png_preview.auto_exposure` of the first frame
-    (1 for a black frame)."""
-    e = auto_exposure(first)
-    return float(e) if np.isfinite(e) and e > 0 else 1.0
 
 
 def write_frame(folder: Path, index: int, rgb: NDArray[np.float32], exposure: float) -> Path:

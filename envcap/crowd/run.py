@@ -14,13 +14,14 @@ import numpy as np
 
 from envcap.core.budget import check_bytes, format_bytes
 from envcap.crowd.camera import Camera, street_camera
-from envcap.crowd.frames import exposure_of, write_description, write_frame
+from envcap.crowd.frames import write_description, write_frame
 from envcap.crowd.inputs import (MATERIAL, CrowdAvatar, crowd_method, default_avatar, default_method, material,
                                  pick_street, read_avatar, read_probes, runtime_street)
 from envcap.crowd.instances import TEXELS_PER_JOINT, AvatarCycle, pose_crowd
 from envcap.crowd.renderer import TARGETS, CrowdRenderer
 from envcap.crowd.sphere_buffer import NEIGHBOURS
 from envcap.crowd.walkers import Walkers, describe, place_walkers
+from envcap.formats.png_preview import auto_exposure
 from envcap.gpu.context import create_context
 from envcap.probeset.probe_set import ProbeSet
 from envcap.runtime.methods import ParallaxMethod
@@ -127,7 +128,7 @@ def run_crowd(job: CrowdJob, out: Path, progress: Callable[[int, int, float], No
             pose = pose_crowd(job.walkers, cycle, i / job.fps, r.origin)
             rgb = r.render(pose, cam, job.terms)["color"]
             if exposure is None:
-                exposure = exposure_of(rgb)
+                exposure = auto_exposure(rgb)
             write_frame(out, i, rgb, exposure)
             feet.append(np.round(pose.feet, 4).tolist())
             times.append(time.perf_counter() - t0)
